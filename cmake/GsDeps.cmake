@@ -1,0 +1,45 @@
+# SPDX-License-Identifier: MIT
+# Finds hbgs's third-party dependencies (Debian 12 packages) and papers over their packaging bugs.
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+
+find_package(xsimd QUIET)
+if(NOT TARGET xsimd)
+  # Cross builds: Debian's xsimd config lives under the host's arch dir; headers are arch-independent.
+  find_path(XSIMD_INCLUDE_DIR xsimd/xsimd.hpp REQUIRED)
+  add_library(xsimd INTERFACE IMPORTED)
+  set_target_properties(xsimd PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${XSIMD_INCLUDE_DIR}")
+endif()
+# Debian xsimd 8.1.0-7 links a nonexistent "xtl" library; xsimd is header-only.
+set_property(TARGET xsimd PROPERTY INTERFACE_LINK_LIBRARIES "")
+
+find_path(STB_INCLUDE_DIR stb_image.h PATH_SUFFIXES stb REQUIRED)
+
+if(GS_BUILD_TESTS)
+  find_package(doctest REQUIRED)
+  include(doctest)
+endif()
+
+if(GS_WITH_EMBREE)
+  find_package(embree 3 QUIET)
+  if(NOT embree_FOUND)
+    message(STATUS "hbgs: Embree not found, `hbgs synth` and the ray-picking tests are disabled")
+    set(GS_WITH_EMBREE OFF)
+  endif()
+endif()
+
+if(GS_BUILD_BENCH)
+  find_package(benchmark QUIET)
+endif()
+
+find_package(CLI11 QUIET CONFIG)
+if(NOT TARGET CLI11::CLI11)
+  find_path(CLI11_INCLUDE_DIR CLI/CLI.hpp REQUIRED)
+  add_library(CLI11::CLI11 INTERFACE IMPORTED)
+  set_target_properties(CLI11::CLI11 PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${CLI11_INCLUDE_DIR}")
+endif()
+find_package(nlohmann_json 3 QUIET)
+if(NOT TARGET nlohmann_json::nlohmann_json)
+  find_path(NLOHMANN_INCLUDE_DIR nlohmann/json.hpp REQUIRED)
+  add_library(nlohmann_json::nlohmann_json INTERFACE IMPORTED)
+  set_target_properties(nlohmann_json::nlohmann_json PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${NLOHMANN_INCLUDE_DIR}")
+endif()
