@@ -1,0 +1,113 @@
+// SPDX-License-Identifier: MIT
+// gs::Renderer: the differentiable CPU tile splatting renderer (forward + backward).
+//
+// Lifecycle: plan -> init (one allocation: the arena) -> forward/backward any number of times.
+// Memory: every buffer lives in the arena sized by plan() from a RenderCapacity (max Gaussians,
+// max tile intersections, max image size); forward and backward allocate nothing. Exceeding a
+// capacity returns kCapacityExceeded (nothing is reallocated behind the caller's back).
+// Threading: work is split over Gaussians (projection) and tiles (rasterisation) on the given
+// ThreadPool; results do not depend on the number of threads (reductions run in fixed order).
+// Inputs are validated at the API boundary (NaN/Inf, sizes, camera); kernels below trust them.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "gs/camera.h"
+#include "gs/status.h"
+
+namespace gs::simd { struct KernelTable; }
+namespace gs::platform { class ThreadPool; }
+
+namespace gs {
+
+// Non-owning view of the Gaussians to render. Exactly one of colors / sh is used.
+struct GaussianParams {
+  size_t count = 0;
+  const float* means = nullptr;       // [N, 3] world
+  const float* log_scales = nullptr;  // [N, 3]
+  const float* quats = nullptr;       // [N, 4] (w, x, y, z), any non-zero norm
+  const float* opacities = nullptr;   // [N] activated, in [0, 1]
+  const float* colors = nullptr;      // [N, 3] RGB, or nullptr when sh is given
+  const float* sh = nullptr;          // [N, K, 3], K = (sh_degree + 1)^2, evaluated for the view
+  int sh_degree = 0;
+};
+
+// Gradient outputs; any pointer may be null to skip it. Arrays are overwritten.
+struct GaussianGrads {
+  float* v_means = nullptr;       // [N, 3]
+  float* v_log_scales = nullptr;  // [N, 3]
+  float* v_quats = nullptr;       // [N, 4] w.r.t. the raw (unnormalised) quaternion
+  float* v_opacities = nullptr;   // [N]
+  float* v_colors = nullptr;      // [N, 3] (colour input) ...
+  float* v_sh = nullptr;          // [N, K, 3] (... or SH input)
+  float* v_means2d = nullptr;     // [N, 2] px, the densification statistic
+  double v_pose[6] = {0, 0, 0, 0, 0, 0};  // (rho, phi): left twist of the world-to-camera pose
+};
+
+struct RenderCapacity {
+  size_t max_gaussians = 0;
+  size_t max_isects = 0;  // Gaussian-tile pairs; 0: 16 x max_gaussians
+  int max_width = 0, max_height = 0;
+  int max_sh_degree = 3;
+};
+
+struct RenderOptions {
+  float background[3] = {0, 0, 0};
+  bool depth = false;           // also produce the alpha-weighted depth image
+  bool validate_inputs = true;  // scan parameters for NaN/Inf (O(N)); a trusted caller may skip it
+};
+
+// Per-frame statistics of the last forward.
+struct RenderStats {
+  size_t visible = 0;  // Gaussians with a non-zero radius
+  size_t isects = 0;   // Gaussian-tile pairs
+};
+
+class Renderer {
+ public:
+  Renderer();
+  ~Renderer();
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+
+  // Bytes the arena needs for a capacity (the dry run).
+  static size_t plan_bytes(const RenderCapacity& capacity);
+
+  // Allocates the arena. pool may be null (single-threaded); kernels null = best for this CPU.
+  Status init(const RenderCapacity& capacity, platform::ThreadPool* pool, const simd::KernelTable* kernels = nullptr);
+  const RenderCapacity& capacity() const { return capacity_; }
+  const char* isa() const;
+
+  // Renders into out_rgb [H, W, 3] (and out_depth [H, W] if options.depth). Keeps what the
+  // backward needs; the parameter arrays must stay unchanged until backward() returns.
+  Status forward(const Camera& camera, const GaussianParams& params, const RenderOptions& options, float* out_rgb,
+                 float* out_depth = nullptr);
+  // Gradients of the last forward given v_rgb = dL/d(out_rgb) [H, W, 3].
+  Status backward(const float* v_rgb, GaussianGrads* grads);
+
+  const RenderStats& stats() const { return stats_; }
+  // Per-pixel state of the last forward: final transmittance and 1 + index of the last contributor
+  // within the pixel's tile list; per-Gaussian radius in px (0 = culled).
+  const float* final_transmittance() const;
+  const int32_t* last_contributor() const;
+  const int32_t* radii() const;
+  // Index of the Gaussian that contributes the largest blending weight alpha*T to a pixel, or -1;
+  // recomputed on demand (for picking and tests, not for the hot loop).
+  int32_t dominant_gaussian(int x, int y) const;
+
+ private:
+  struct Impl;
+  Impl* impl_;
+  RenderCapacity capacity_;
+  RenderStats stats_;
+};
+
+// Validates a Gaussian set: sizes, and every parameter finite; opacities in [0, 1]; quaternions
+// non-zero. The message names the first offending Gaussian and field.
+Status validate_gaussians(const GaussianParams& params);
+// Validates a camera: positive finite focal lengths, finite principal point, size >= 1, rotation
+// orthonormal within 1e-3, finite translation.
+Status validate_camera(const Camera& camera);
+
+}  // namespace gs

@@ -1,0 +1,428 @@
+// SPDX-License-Identifier: MIT
+// The production splatting pipeline: validate -> project (SIMD, parallel over Gaussians) ->
+// bin (count -> scan -> emit keys) -> per tile: sort by depth, pack records, blend (SIMD, parallel
+// over tiles). Backward: per-tile blend backward into per-intersection gradients, a fixed-order
+// reduction to Gaussians, projection backward (parallel, pose gradient summed per chunk in order).
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+
+#include "gs/platform/thread_pool.h"
+#include "gs/render.h"
+#include "gs/simd/kernel_table.h"
+#include "gs/simd/ref.h"
+
+namespace gs {
+namespace {
+
+constexpr size_t kArenaAlign = 64;
+constexpr size_t kExtraBytes = 64;       // over-read pad after every buffer (GS_EXTRA_BYTES)
+constexpr size_t kProjectGrain = 1024;   // Gaussians per projection chunk
+
+// Carves typed buffers out of one block; with base == nullptr it only counts (the dry run).
+class Carver {
+ public:
+  explicit Carver(uint8_t* base) : base_(base) {}
+  template <class T>
+  T* take(size_t count) {
+    offset_ = (offset_ + kArenaAlign - 1) / kArenaAlign * kArenaAlign;
+    T* p = base_ ? reinterpret_cast<T*>(base_ + offset_) : nullptr;
+    offset_ += count * sizeof(T) + kExtraBytes;
+    return p;
+  }
+  size_t bytes() const { return offset_ + kArenaAlign; }
+
+ private:
+  uint8_t* base_;
+  size_t offset_ = 0;
+};
+
+template <class F>
+void run_parallel(platform::ThreadPool* pool, size_t n, size_t grain, F& f) {
+  if (n == 0) return;
+  if (pool) {
+    pool->parallel_for(n, grain, f);
+  } else {
+    f(size_t(0), n, 0);
+  }
+}
+
+}  // namespace
+
+struct Renderer::Impl {
+  platform::ThreadPool* pool = nullptr;
+  const simd::KernelTable* kernels = nullptr;
+  uint8_t* arena = nullptr;
+  size_t arena_bytes = 0;
+  // per Gaussian
+  float *means2d, *conics, *depths, *colors;
+  int32_t *radii, *rects;
+  float *acc_means2d, *acc_conics, *acc_opacities, *acc_colors;
+  float *scratch_v_means, *scratch_v_log_scales, *scratch_v_quats;
+  double* chunk_pose;  // [chunks, 6]
+  // per tile
+  uint32_t *tile_offsets, *tile_cursor;  // [tiles + 1]
+  // per intersection
+  uint64_t* keys;  // (depth bits << 32) | gaussian id, sorted within each tile
+  float *splats, *v_splats;
+  // per pixel
+  float* final_T;
+  int32_t* last;
+  // last forward
+  Camera camera;
+  GaussianParams params;
+  RenderOptions options;
+  simd::ProjectParams pp;
+  simd::RasterParams rp;
+  size_t num_isects = 0;
+  int tiles = 0;
+  float campos[3];
+
+  void carve(Carver& c, const RenderCapacity& cap) {
+    const size_t G = cap.max_gaussians, I = cap.max_isects, P = size_t(cap.max_width) * cap.max_height;
+    const size_t tiles_max = size_t((cap.max_width + simd::kTileSize - 1) / simd::kTileSize) *
+                             size_t((cap.max_height + simd::kTileSize - 1) / simd::kTileSize);
+    means2d = c.take<float>(G * 2);
+    conics = c.take<float>(G * 3);
+    depths = c.take<float>(G);
+    colors = c.take<float>(G * 3);
+    radii = c.take<int32_t>(G);
+    rects = c.take<int32_t>(G * 4);
+    acc_means2d = c.take<float>(G * 2);
+    acc_conics = c.take<float>(G * 3);
+    acc_opacities = c.take<float>(G);
+    acc_colors = c.take<float>(G * 3);
+    scratch_v_means = c.take<float>(G * 3);
+    scratch_v_log_scales = c.take<float>(G * 3);
+    scratch_v_quats = c.take<float>(G * 4);
+    chunk_pose = c.take<double>((G / kProjectGrain + 1) * 6);
+    tile_offsets = c.take<uint32_t>(tiles_max + 1);
+    tile_cursor = c.take<uint32_t>(tiles_max + 1);
+    keys = c.take<uint64_t>(I);
+    splats = c.take<float>(I * simd::kSplatStride);
+    v_splats = c.take<float>(I * simd::kSplatStride);
+    final_T = c.take<float>(P);
+    last = c.take<int32_t>(P);
+  }
+
+  void tile_range(int tile, uint32_t* begin, uint32_t* end) const {
+    *begin = tile_offsets[tile];
+    *end = tile_offsets[tile + 1];
+  }
+};
+
+Renderer::Renderer() : impl_(new Impl()) {}
+Renderer::~Renderer() {
+  std::free(impl_->arena);
+  delete impl_;
+}
+
+static RenderCapacity resolved(RenderCapacity cap) {
+  if (cap.max_isects == 0) cap.max_isects = 16 * cap.max_gaussians;
+  return cap;
+}
+
+size_t Renderer::plan_bytes(const RenderCapacity& capacity) {
+  Impl dry;
+  Carver c(nullptr);
+  dry.carve(c, resolved(capacity));
+  return c.bytes();
+}
+
+Status Renderer::init(const RenderCapacity& capacity_in, platform::ThreadPool* pool,
+                      const simd::KernelTable* kernels) {
+  const RenderCapacity capacity = resolved(capacity_in);
+  if (capacity.max_width <= 0 || capacity.max_height <= 0 || capacity.max_width > 16384 ||
+      capacity.max_height > 16384)
+    return invalid_argument("render capacity: image size " + std::to_string(capacity.max_width) + "x" +
+                            std::to_string(capacity.max_height) + " is outside 1..16384");
+  if (capacity.max_gaussians >= (size_t(1) << 31) || capacity.max_isects >= (size_t(1) << 32))
+    return invalid_argument("render capacity: at most 2^31 Gaussians and 2^32 intersections");
+  if (capacity.max_sh_degree < 0 || capacity.max_sh_degree > 3)
+    return invalid_argument("render capacity: SH degree must be 0..3");
+  const size_t bytes = plan_bytes(capacity);
+  std::free(impl_->arena);
+  impl_->arena = static_cast<uint8_t*>(std::aligned_alloc(kArenaAlign, (bytes + kArenaAlign - 1) / kArenaAlign * kArenaAlign));
+  if (!impl_->arena) return capacity_exceeded("render arena: cannot allocate " + std::to_string(bytes) + " bytes");
+  impl_->arena_bytes = bytes;
+  Carver c(impl_->arena);
+  impl_->carve(c, capacity);
+  impl_->pool = pool;
+  impl_->kernels = kernels ? kernels : &simd::best_kernel_table();
+  capacity_ = capacity;
+  return Status::Ok();
+}
+
+const char* Renderer::isa() const { return impl_->kernels ? impl_->kernels->isa : "none"; }
+const float* Renderer::final_transmittance() const { return impl_->final_T; }
+const int32_t* Renderer::last_contributor() const { return impl_->last; }
+const int32_t* Renderer::radii() const { return impl_->radii; }
+
+static bool finite(float v) { return std::isfinite(v); }
+
+Status validate_gaussians(const GaussianParams& p) {
+  if (p.count > 0 && (!p.means || !p.log_scales || !p.quats || !p.opacities))
+    return invalid_argument("Gaussians: means, log_scales, quats and opacities are required");
+  if (p.count > 0 && !p.colors && !p.sh) return invalid_argument("Gaussians: either colors or sh is required");
+  if (p.sh && (p.sh_degree < 0 || p.sh_degree > 3))
+    return invalid_argument("Gaussians: SH degree " + std::to_string(p.sh_degree) + " is outside 0..3");
+  const size_t K = size_t((p.sh_degree + 1) * (p.sh_degree + 1));
+  auto bad = [](size_t i, const char* field, const std::string& what) {
+    return invalid_argument("Gaussian " + std::to_string(i) + ": " + field + " " + what);
+  };
+  for (size_t i = 0; i < p.count; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      if (!finite(p.means[3 * i + k])) return bad(i, "mean", "is not finite");
+      if (!finite(p.log_scales[3 * i + k])) return bad(i, "log-scale", "is not finite");
+    }
+    float qn = 0;
+    for (int k = 0; k < 4; ++k) {
+      if (!finite(p.quats[4 * i + k])) return bad(i, "quaternion", "is not finite");
+      qn += p.quats[4 * i + k] * p.quats[4 * i + k];
+    }
+    if (!(qn > 0)) return bad(i, "quaternion", "is zero");
+    const float o = p.opacities[i];
+    if (!(o >= 0.0f && o <= 1.0f)) return bad(i, "opacity", "is not in [0, 1]");
+    if (p.colors) {
+      for (int k = 0; k < 3; ++k)
+        if (!finite(p.colors[3 * i + k])) return bad(i, "colour", "is not finite");
+    } else {
+      for (size_t k = 0; k < K * 3; ++k)
+        if (!finite(p.sh[i * K * 3 + k])) return bad(i, "SH coefficient", "is not finite");
+    }
+  }
+  return Status::Ok();
+}
+
+Status validate_camera(const Camera& cam) {
+  const PinholeIntrinsics& in = cam.intr;
+  if (in.width < 1 || in.height < 1) return invalid_argument("camera: image size must be at least 1x1");
+  if (!(finite(in.fx) && finite(in.fy) && in.fx > 0 && in.fy > 0))
+    return invalid_argument("camera: focal lengths must be positive and finite");
+  if (!(finite(in.cx) && finite(in.cy))) return invalid_argument("camera: principal point is not finite");
+  for (float v : cam.pose.R)
+    if (!finite(v)) return invalid_argument("camera: rotation is not finite");
+  for (float v : cam.pose.t)
+    if (!finite(v)) return invalid_argument("camera: translation is not finite");
+  const float* R = cam.pose.R;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      const float d = R[i * 3] * R[j * 3] + R[i * 3 + 1] * R[j * 3 + 1] + R[i * 3 + 2] * R[j * 3 + 2];
+      if (std::fabs(d - (i == j ? 1.0f : 0.0f)) > 1e-3f)
+        return invalid_argument("camera: rotation is not orthonormal (R R^T differs from I by more than 1e-3)");
+    }
+  return Status::Ok();
+}
+
+Status Renderer::forward(const Camera& camera, const GaussianParams& params, const RenderOptions& options,
+                         float* out_rgb, float* out_depth) {
+  Impl& m = *impl_;
+  if (!m.arena) return invalid_argument("Renderer::forward before init");
+  const int W = camera.intr.width, H = camera.intr.height;
+  if (options.validate_inputs) {
+    GS_RETURN_IF_ERROR(validate_camera(camera));
+    GS_RETURN_IF_ERROR(validate_gaussians(params));
+  }
+  if (W > capacity_.max_width || H > capacity_.max_height)
+    return capacity_exceeded("image " + std::to_string(W) + "x" + std::to_string(H) + " exceeds the planned " +
+                             std::to_string(capacity_.max_width) + "x" + std::to_string(capacity_.max_height));
+  if (params.count > capacity_.max_gaussians)
+    return capacity_exceeded(std::to_string(params.count) + " Gaussians exceed the planned " +
+                             std::to_string(capacity_.max_gaussians));
+  if (params.sh && params.sh_degree > capacity_.max_sh_degree)
+    return capacity_exceeded("SH degree exceeds the planned maximum");
+  if (!out_rgb || (options.depth && !out_depth)) return invalid_argument("Renderer::forward: missing output buffer");
+
+  m.camera = camera;
+  m.params = params;
+  m.options = options;
+  simd::ProjectParams& pp = m.pp;
+  std::memcpy(pp.R, camera.pose.R, sizeof(pp.R));
+  std::memcpy(pp.t, camera.pose.t, sizeof(pp.t));
+  pp.fx = camera.intr.fx; pp.fy = camera.intr.fy; pp.cx = camera.intr.cx; pp.cy = camera.intr.cy;
+  pp.width = W; pp.height = H;
+  simd::finish_project_params(&pp);
+  m.rp.width = W; m.rp.height = H;
+  std::memcpy(m.rp.background, options.background, sizeof(m.rp.background));
+  m.tiles = pp.tiles_x * pp.tiles_y;
+  const float* R = camera.pose.R;
+  const float* t = camera.pose.t;
+  for (int k = 0; k < 3; ++k) m.campos[k] = -(R[k] * t[0] + R[3 + k] * t[1] + R[6 + k] * t[2]);
+
+  // 1. Project (and evaluate SH) in parallel chunks.
+  const size_t n = params.count;
+  auto project = [&](size_t b, size_t e, int) {
+    m.kernels->project_fwd(&pp, e - b, params.means + 3 * b, params.log_scales + 3 * b, params.quats + 4 * b,
+                           m.means2d + 2 * b, m.conics + 3 * b, m.depths + b, m.radii + b);
+    for (size_t i = b; i < e; ++i)
+      if (m.radii[i] > 0) simd::tile_rect(&pp, m.means2d + 2 * i, m.radii[i], m.rects + 4 * i);
+    if (params.sh) simd::sh_fwd_ref<float>(e - b, params.sh_degree, params.means + 3 * b,
+                                           params.sh + (b * (params.sh_degree + 1) * (params.sh_degree + 1)) * 3,
+                                           m.campos, m.colors + 3 * b);
+  };
+  run_parallel(m.pool, n, kProjectGrain, project);
+  const float* colors = params.sh ? m.colors : params.colors;
+
+  // 2. Bin: count intersections per tile, scan, emit keys.
+  std::fill(m.tile_offsets, m.tile_offsets + m.tiles + 1, 0u);
+  size_t visible = 0, total = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (m.radii[i] == 0) continue;
+    ++visible;
+    const int32_t* r = m.rects + 4 * i;
+    total += size_t(r[2] - r[0]) * size_t(r[3] - r[1]);
+    for (int ty = r[1]; ty < r[3]; ++ty)
+      for (int tx = r[0]; tx < r[2]; ++tx) ++m.tile_offsets[ty * pp.tiles_x + tx + 1];
+  }
+  stats_.visible = visible;
+  stats_.isects = total;
+  if (total > capacity_.max_isects)
+    return capacity_exceeded(std::to_string(total) + " Gaussian-tile intersections exceed the planned " +
+                             std::to_string(capacity_.max_isects));
+  for (int tile = 0; tile < m.tiles; ++tile) m.tile_offsets[tile + 1] += m.tile_offsets[tile];
+  std::memcpy(m.tile_cursor, m.tile_offsets, sizeof(uint32_t) * size_t(m.tiles + 1));
+  for (size_t i = 0; i < n; ++i) {
+    if (m.radii[i] == 0) continue;
+    uint32_t depth_bits;
+    std::memcpy(&depth_bits, m.depths + i, 4);  // depth > near plane > 0: float bits are monotonic
+    const uint64_t key = (uint64_t(depth_bits) << 32) | uint64_t(i);
+    const int32_t* r = m.rects + 4 * i;
+    for (int ty = r[1]; ty < r[3]; ++ty)
+      for (int tx = r[0]; tx < r[2]; ++tx) m.keys[m.tile_cursor[ty * pp.tiles_x + tx]++] = key;
+  }
+  m.num_isects = total;
+
+  // 3. Per tile: sort by (depth, id), pack records, blend.
+  auto raster = [&](size_t b, size_t e, int) {
+    for (size_t tile = b; tile < e; ++tile) {
+      uint32_t begin, end;
+      m.tile_range(int(tile), &begin, &end);
+      std::sort(m.keys + begin, m.keys + end);
+      for (uint32_t k = begin; k < end; ++k) {
+        const uint32_t g = uint32_t(m.keys[k]);
+        float* s = m.splats + size_t(k) * simd::kSplatStride;
+        s[simd::kSplatMx] = m.means2d[2 * g];
+        s[simd::kSplatMy] = m.means2d[2 * g + 1];
+        s[simd::kSplatA] = m.conics[3 * g];
+        s[simd::kSplatB] = m.conics[3 * g + 1];
+        s[simd::kSplatC] = m.conics[3 * g + 2];
+        s[simd::kSplatOpacity] = params.opacities[g];
+        s[simd::kSplatR] = colors[3 * g];
+        s[simd::kSplatG] = colors[3 * g + 1];
+        s[simd::kSplatBlue] = colors[3 * g + 2];
+        s[simd::kSplatDepth] = m.depths[g];
+      }
+      const int tx = int(tile) % pp.tiles_x, ty = int(tile) / pp.tiles_x;
+      m.kernels->raster_fwd_tile(&m.rp, tx, ty, m.splats + size_t(begin) * simd::kSplatStride,
+                                 int32_t(end - begin), out_rgb, m.final_T, m.last, options.depth ? out_depth : nullptr);
+    }
+  };
+  run_parallel(m.pool, size_t(m.tiles), 1, raster);
+  return Status::Ok();
+}
+
+Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
+  Impl& m = *impl_;
+  if (!m.arena) return invalid_argument("Renderer::backward before init");
+  if (!v_rgb || !grads) return invalid_argument("Renderer::backward: null gradient buffer");
+  const GaussianParams& params = m.params;
+  const size_t n = params.count;
+  const simd::ProjectParams& pp = m.pp;
+
+  // 1. Per tile: blend backward into per-intersection gradients.
+  auto raster = [&](size_t b, size_t e, int) {
+    for (size_t tile = b; tile < e; ++tile) {
+      uint32_t begin, end;
+      m.tile_range(int(tile), &begin, &end);
+      const int tx = int(tile) % pp.tiles_x, ty = int(tile) / pp.tiles_x;
+      m.kernels->raster_bwd_tile(&m.rp, tx, ty, m.splats + size_t(begin) * simd::kSplatStride, int32_t(end - begin),
+                                 m.final_T, m.last, v_rgb, m.v_splats + size_t(begin) * simd::kSplatStride);
+    }
+  };
+  run_parallel(m.pool, size_t(m.tiles), 1, raster);
+
+  // 2. Reduce intersections to Gaussians in a fixed order (tile-major), so results are reproducible.
+  std::fill(m.acc_means2d, m.acc_means2d + 2 * n, 0.0f);
+  std::fill(m.acc_conics, m.acc_conics + 3 * n, 0.0f);
+  std::fill(m.acc_opacities, m.acc_opacities + n, 0.0f);
+  std::fill(m.acc_colors, m.acc_colors + 3 * n, 0.0f);
+  for (size_t k = 0; k < m.num_isects; ++k) {
+    const uint32_t g = uint32_t(m.keys[k]);
+    const float* v = m.v_splats + k * simd::kSplatStride;
+    m.acc_means2d[2 * g] += v[simd::kSplatMx];
+    m.acc_means2d[2 * g + 1] += v[simd::kSplatMy];
+    m.acc_conics[3 * g] += v[simd::kSplatA];
+    m.acc_conics[3 * g + 1] += v[simd::kSplatB];
+    m.acc_conics[3 * g + 2] += v[simd::kSplatC];
+    m.acc_opacities[g] += v[simd::kSplatOpacity];
+    m.acc_colors[3 * g] += v[simd::kSplatR];
+    m.acc_colors[3 * g + 1] += v[simd::kSplatG];
+    m.acc_colors[3 * g + 2] += v[simd::kSplatBlue];
+  }
+
+  // 3. Projection backward in chunks; each chunk sums its own pose gradient, chunks are summed in order.
+  float* v_means = grads->v_means ? grads->v_means : m.scratch_v_means;
+  float* v_log_scales = grads->v_log_scales ? grads->v_log_scales : m.scratch_v_log_scales;
+  float* v_quats = grads->v_quats ? grads->v_quats : m.scratch_v_quats;
+  const size_t chunks = (n + kProjectGrain - 1) / kProjectGrain;
+  std::fill(m.chunk_pose, m.chunk_pose + 6 * chunks, 0.0);
+  auto project = [&](size_t b, size_t e, int) {
+    m.kernels->project_bwd(&pp, e - b, params.means + 3 * b, params.log_scales + 3 * b, params.quats + 4 * b,
+                           m.radii + b, m.acc_means2d + 2 * b, m.acc_conics + 3 * b, nullptr, v_means + 3 * b,
+                           v_log_scales + 3 * b, v_quats + 4 * b, m.chunk_pose + 6 * (b / kProjectGrain));
+  };
+  run_parallel(m.pool, n, kProjectGrain, project);
+  for (int k = 0; k < 6; ++k) grads->v_pose[k] = 0.0;
+  for (size_t c = 0; c < chunks; ++c)
+    for (int k = 0; k < 6; ++k) grads->v_pose[k] += m.chunk_pose[6 * c + k];
+
+  // 4. Colours: direct, or through SH (view direction depends on the camera centre C = -R^T t;
+  //    a left twist moves C by -R^T rho, so dL/drho += -R dL/dC).
+  if (params.sh) {
+    float v_campos[3] = {0, 0, 0};
+    float* v_sh = grads->v_sh;
+    if (v_sh) {
+      simd::sh_bwd_ref<float>(n, params.sh_degree, params.means, params.sh, m.campos, m.acc_colors, v_sh, v_means,
+                              v_campos);
+      const float* R = m.camera.pose.R;
+      for (int k = 0; k < 3; ++k)
+        grads->v_pose[k] -= double(R[k * 3] * v_campos[0] + R[k * 3 + 1] * v_campos[1] + R[k * 3 + 2] * v_campos[2]);
+    }
+  } else if (grads->v_colors) {
+    std::memcpy(grads->v_colors, m.acc_colors, sizeof(float) * 3 * n);
+  }
+  if (grads->v_opacities) std::memcpy(grads->v_opacities, m.acc_opacities, sizeof(float) * n);
+  if (grads->v_means2d) std::memcpy(grads->v_means2d, m.acc_means2d, sizeof(float) * 2 * n);
+  return Status::Ok();
+}
+
+int32_t Renderer::dominant_gaussian(int x, int y) const {
+  const Impl& m = *impl_;
+  if (x < 0 || y < 0 || x >= m.pp.width || y >= m.pp.height) return -1;
+  const int tile = (y / simd::kTileSize) * m.pp.tiles_x + x / simd::kTileSize;
+  uint32_t begin, end;
+  m.tile_range(tile, &begin, &end);
+  const float px = float(x) + 0.5f, py = float(y) + 0.5f;
+  float trans = 1.0f, best_w = 0.0f;
+  int32_t best = -1;
+  const int32_t last = m.last[size_t(y) * m.pp.width + x];
+  for (uint32_t k = begin; k < begin + uint32_t(last) && k < end; ++k) {
+    const float* s = m.splats + size_t(k) * simd::kSplatStride;
+    const float dx = s[simd::kSplatMx] - px, dy = s[simd::kSplatMy] - py;
+    const float power = -0.5f * (s[simd::kSplatA] * dx * dx + s[simd::kSplatC] * dy * dy) - s[simd::kSplatB] * dx * dy;
+    if (power > 0.0f) continue;
+    const float alpha = std::min(simd::kAlphaMax, s[simd::kSplatOpacity] * std::exp(power));
+    if (alpha < simd::kAlphaMin) continue;
+    const float w = alpha * trans;
+    if (w > best_w) {
+      best_w = w;
+      best = int32_t(uint32_t(m.keys[k]));
+    }
+    trans *= 1.0f - alpha;
+  }
+  return best;
+}
+
+}  // namespace gs

@@ -1,0 +1,46 @@
+// SPDX-License-Identifier: MIT
+// KernelTable: one set of function pointers per instruction set, filled once at start-up; nothing
+// dispatches per call. The "ref" table points at the scalar reference kernels (the spec); the SIMD
+// tables hold xsimd variants compiled in per-ISA translation units (sse2 / avx2 / avx512 on x86,
+// neon64 on aarch64, neon on armv7). Callers pick best_kernel_table() unless they compare variants.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "gs/simd/splat.h"
+
+namespace gs::simd {
+
+using ProjectFwdFn = void (*)(const ProjectParams*, size_t n, const float* means, const float* log_scales,
+                              const float* quats, float* means2d, float* conics, float* depths, int32_t* radii);
+using ProjectBwdFn = void (*)(const ProjectParams*, size_t n, const float* means, const float* log_scales,
+                              const float* quats, const int32_t* radii, const float* v_means2d, const float* v_conics,
+                              const float* v_depths, float* v_means, float* v_log_scales, float* v_quats,
+                              double* v_pose);
+using RasterFwdTileFn = void (*)(const RasterParams*, int32_t tile_x, int32_t tile_y, const float* splats,
+                                 int32_t count, float* out_rgb, float* out_T, int32_t* out_last, float* out_depth);
+using RasterBwdTileFn = void (*)(const RasterParams*, int32_t tile_x, int32_t tile_y, const float* splats,
+                                 int32_t count, const float* final_T, const int32_t* last, const float* v_rgb,
+                                 float* v_splats);
+
+struct KernelTable {
+  const char* isa;  // "ref", "sse2", "avx2", "avx512", "neon64", "neon"
+  int lanes;        // float lanes of the variant (1 for ref)
+  ProjectFwdFn project_fwd;
+  ProjectBwdFn project_bwd;
+  RasterFwdTileFn raster_fwd_tile;
+  RasterBwdTileFn raster_bwd_tile;
+};
+
+// The reference table (always available).
+const KernelTable& ref_kernel_table();
+// Every SIMD table compiled into this build and supported by this CPU, best first.
+// Returns the number written to out (at most max_tables).
+int available_simd_kernel_tables(const KernelTable** out, int max_tables);
+// Best SIMD table for this CPU, or the ref table if none is available.
+const KernelTable& best_kernel_table();
+// Table by ISA name ("ref", "sse2", ...), or nullptr if not compiled in or not supported here.
+const KernelTable* kernel_table_by_name(const char* isa);
+
+}  // namespace gs::simd

@@ -1,0 +1,116 @@
+// SPDX-License-Identifier: MIT
+// Scalar reference kernels of the splatting renderer: slow, readable, templated on float and
+// double, never optimised. They are the spec the SIMD kernels are tested against and the
+// double-precision forward the finite-difference gradient checks differentiate.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+
+#include "gs/simd/splat.h"
+
+namespace gs::simd {
+
+// Projects n Gaussians. radii[i] == 0 marks a culled Gaussian (behind the near plane, degenerate
+// 2D covariance, or no tile overlap); its other outputs are then unspecified.
+template <class T>
+void project_fwd_ref(const ProjectParamsT<T>* p, size_t n,
+                     // fwd inputs
+                     const T* means,       // [n, 3] world
+                     const T* log_scales,  // [n, 3]
+                     const T* quats,       // [n, 4] (w, x, y, z), any norm > 0
+                     // fwd outputs
+                     T* means2d,           // [n, 2] px
+                     T* conics,            // [n, 3] inverse 2D covariance (a, b, c)
+                     T* depths,            // [n] camera z
+                     int32_t* radii);      // [n] px, 0 = culled
+
+// Backward of project_fwd_ref. Outputs are overwritten (zero for culled Gaussians); the pose
+// gradient (twist of a left perturbation of the world-to-camera transform, (rho, phi)) is added
+// to v_pose.
+template <class T>
+void project_bwd_ref(const ProjectParamsT<T>* p, size_t n,
+                     // fwd inputs
+                     const T* means, const T* log_scales, const T* quats, const int32_t* radii,
+                     // grad inputs
+                     const T* v_means2d,  // [n, 2]
+                     const T* v_conics,   // [n, 3] w.r.t. (a, b, c) with b counted once
+                     const T* v_depths,   // [n] or nullptr
+                     // grad outputs
+                     T* v_means,          // [n, 3]
+                     T* v_log_scales,     // [n, 3]
+                     T* v_quats,          // [n, 4]
+                     double* v_pose);     // [6] (rho, phi), accumulated
+
+// Tile rectangle [x0, x1) x [y0, y1) in tiles covered by a projected Gaussian (3DGS getRect, with
+// the mean shifted by -0.5 px because hbgs puts pixel centres at +0.5). Returns the tile count.
+template <class T>
+inline int32_t tile_rect(const ProjectParamsT<T>* p, const T* mean2d, int32_t radius, int32_t rect[4]) {
+  const T px = mean2d[0] - T(0.5), py = mean2d[1] - T(0.5), r = T(radius);
+  auto clampi = [](T v, int32_t hi) {
+    // Truncation toward zero as in the CUDA reference, then clamp; guard huge values before the cast.
+    if (!(v > T(-1e9))) v = T(-1e9);
+    if (v > T(1e9)) v = T(1e9);
+    int32_t i = int32_t(v);
+    return i < 0 ? 0 : (i > hi ? hi : i);
+  };
+  const int32_t ts = kTileSize;
+  rect[0] = clampi((px - r) / T(ts), p->tiles_x);
+  rect[1] = clampi((py - r) / T(ts), p->tiles_y);
+  rect[2] = clampi((px + r + T(ts - 1)) / T(ts), p->tiles_x);
+  rect[3] = clampi((py + r + T(ts - 1)) / T(ts), p->tiles_y);
+  return (rect[2] - rect[0]) * (rect[3] - rect[1]);
+}
+
+// One splat evaluated at a pixel centre (px, py): offsets, Gaussian falloff G and alpha.
+template <class T>
+struct SplatEval {
+  T dx, dy, G, alpha;
+  bool clamped;  // alpha hit the 0.99 ceiling: no gradient flows to opacity or the Gaussian
+};
+
+// Returns false when the splat does not contribute to the pixel (power > 0, which only a
+// non-positive-definite conic gives, or alpha below 1/255).
+template <class T>
+inline bool eval_splat_ref(const T* s, T px, T py, SplatEval<T>* e) {
+  e->dx = s[kSplatMx] - px;
+  e->dy = s[kSplatMy] - py;
+  const T power = T(-0.5) * (s[kSplatA] * e->dx * e->dx + s[kSplatC] * e->dy * e->dy) - s[kSplatB] * e->dx * e->dy;
+  if (power > T(0)) return false;
+  e->G = std::exp(power);
+  const T raw = s[kSplatOpacity] * e->G;
+  e->clamped = raw > T(kAlphaMax);
+  e->alpha = e->clamped ? T(kAlphaMax) : raw;
+  return e->alpha >= T(kAlphaMin);
+}
+
+// Blends one tile front to back. splats holds `count` packed records sorted by depth.
+// Writes the tile's pixels of out_rgb [H, W, 3], out_T [H, W] (final transmittance), out_last
+// [H, W] (1 + index of the last contributing record, 0 if none) and, if not null, out_depth [H, W]
+// (alpha-weighted depth, not normalised).
+template <class T>
+void raster_fwd_tile_ref(const RasterParamsT<T>* p, int32_t tile_x, int32_t tile_y,
+                         const T* splats, int32_t count,
+                         T* out_rgb, T* out_T, int32_t* out_last, T* out_depth);
+
+// Backward of raster_fwd_tile_ref for one tile. v_splats [count, kSplatStride] is overwritten
+// with the gradient w.r.t. each record's mean2d, conic, opacity and colour (depth slot = 0).
+template <class T>
+void raster_bwd_tile_ref(const RasterParamsT<T>* p, int32_t tile_x, int32_t tile_y,
+                         const T* splats, int32_t count,
+                         const T* final_T, const int32_t* last,
+                         const T* v_rgb,  // [H, W, 3]
+                         T* v_splats);
+
+// Colour from spherical harmonics (3DGS convention: value + 0.5, clamped at 0 from below).
+// sh [n, K, 3] with K = (degree + 1)^2; campos = camera centre in world coordinates.
+template <class T>
+void sh_fwd_ref(size_t n, int32_t degree, const T* means, const T* sh, const T* campos, T* colors);
+// Backward: v_sh [n, K, 3] overwritten; v_means [n, 3] (view-direction path) and v_campos [3]
+// accumulated.
+template <class T>
+void sh_bwd_ref(size_t n, int32_t degree, const T* means, const T* sh, const T* campos,
+                const T* v_colors, T* v_sh, T* v_means, T* v_campos);
+
+}  // namespace gs::simd

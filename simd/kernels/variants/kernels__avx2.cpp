@@ -1,0 +1,6 @@
+// SPDX-License-Identifier: MIT
+// avx2 variants of the splatting kernels (compiled with avx2 flags; see simd/CMakeLists.txt).
+#define GS_VARIANT_ARCH xsimd::fma3<xsimd::avx2>
+#define GS_VARIANT_NAME "avx2"
+#define GS_VARIANT_TABLE kernel_table_avx2
+#include "variant.inc"

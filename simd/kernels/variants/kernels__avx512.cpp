@@ -1,0 +1,6 @@
+// SPDX-License-Identifier: MIT
+// avx512 variants of the splatting kernels (compiled with avx512 flags; see simd/CMakeLists.txt).
+#define GS_VARIANT_ARCH xsimd::avx512bw
+#define GS_VARIANT_NAME "avx512"
+#define GS_VARIANT_TABLE kernel_table_avx512
+#include "variant.inc"

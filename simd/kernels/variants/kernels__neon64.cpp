@@ -1,0 +1,6 @@
+// SPDX-License-Identifier: MIT
+// neon64 variants of the splatting kernels (compiled with neon64 flags; see simd/CMakeLists.txt).
+#define GS_VARIANT_ARCH xsimd::neon64
+#define GS_VARIANT_NAME "neon64"
+#define GS_VARIANT_TABLE kernel_table_neon64
+#include "variant.inc"
