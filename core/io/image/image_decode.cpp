@@ -1,0 +1,90 @@
+// SPDX-License-Identifier: MIT
+// Image decoding: PNG/JPEG bytes -> Image8 through stb_image, with the header validated
+// (format, sides within kMaxImageSide) before any pixel memory is allocated.
+#define STBI_NO_STDIO
+#include <stb_image.h>
+
+#include <climits>
+#include <cstring>
+
+#include "../io_util.h"
+#include "gs/io/image.h"
+#include "gs/platform/file.h"
+
+namespace gs::io {
+namespace {
+
+bool looks_like_png(const uint8_t* d, size_t n) {
+  static const uint8_t kSig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  return n >= 8 && std::memcmp(d, kSig, 8) == 0;
+}
+bool looks_like_jpeg(const uint8_t* d, size_t n) { return n >= 3 && d[0] == 0xff && d[1] == 0xd8 && d[2] == 0xff; }
+
+// PNG sides straight from IHDR (big-endian at bytes 16..23). stb's own info call refuses
+// very large PNGs with only "unknown image type", so we read them to say what was wrong.
+bool png_sides(const uint8_t* d, size_t n, uint64_t* w, uint64_t* h) {
+  if (n < 24 || std::memcmp(d + 12, "IHDR", 4) != 0) return false;
+  *w = (uint64_t(d[16]) << 24) | (uint64_t(d[17]) << 16) | (uint64_t(d[18]) << 8) | d[19];
+  *h = (uint64_t(d[20]) << 24) | (uint64_t(d[21]) << 16) | (uint64_t(d[22]) << 8) | d[23];
+  return true;
+}
+
+Status bad_size(const std::string& source, uint64_t w, uint64_t h) {
+  return unsupported(source + ": image size " + std::to_string(w) + "x" + std::to_string(h) + " outside 1.." +
+                     std::to_string(kMaxImageSide) + " per side");
+}
+
+Expected<Image8> decode(const uint8_t* data, size_t size, int channels, const std::string& source) {
+  if (channels != 1 && channels != 3 && channels != 4)
+    return invalid_argument(source + ": cannot decode to " + std::to_string(channels) + " channels (1, 3 or 4)");
+  if (data == nullptr || size == 0) return parse_error(source + ": empty file, not an image");
+  if (!looks_like_png(data, size) && !looks_like_jpeg(data, size))
+    return parse_error(source + ": unknown image format (not PNG or JPEG)");
+  if (size > size_t(INT_MAX)) return unsupported(source + ": image file larger than 2 GiB");
+  const int len = int(size);
+
+  uint64_t pw = 0, ph = 0;
+  if (png_sides(data, size, &pw, &ph) && (pw == 0 || ph == 0 || pw > uint64_t(kMaxImageSide) || ph > uint64_t(kMaxImageSide)))
+    return bad_size(source, pw, ph);
+  int w = 0, h = 0, comp = 0;
+  if (!stbi_info_from_memory(data, len, &w, &h, &comp))
+    return parse_error(source + ": bad image header (" + stbi_failure_reason() + ")");
+  if (w <= 0 || h <= 0 || w > kMaxImageSide || h > kMaxImageSide) return bad_size(source, uint64_t(w), uint64_t(h));
+
+  int dw = 0, dh = 0;
+  uint8_t* pixels = stbi_load_from_memory(data, len, &dw, &dh, &comp, channels);
+  if (pixels == nullptr) return parse_error(source + ": cannot decode image (" + stbi_failure_reason() + ")");
+  if (dw != w || dh != h) {
+    stbi_image_free(pixels);
+    return parse_error(source + ": decoded size differs from the header");
+  }
+  Image8 img;
+  img.width = w;
+  img.height = h;
+  img.channels = channels;
+  try {
+    img.pixels.assign(pixels, pixels + size_t(w) * size_t(h) * size_t(channels));
+  } catch (...) {
+    stbi_image_free(pixels);
+    throw;
+  }
+  stbi_image_free(pixels);
+  return img;
+}
+
+}  // namespace
+
+Expected<Image8> decode_image(const uint8_t* data, size_t size, int channels, const std::string& source) {
+  return detail::guarded(source, [&]() { return decode(data, size, channels, source); });
+}
+
+Expected<Image8> read_image(const std::string& path, int channels) {
+  return detail::guarded(path, [&]() -> Expected<Image8> {
+    // JPEG/PNG of a kMaxImageSide^2 RGBA image compress well below this bound.
+    auto bytes = platform::read_file(path, uint64_t(1) << 30);
+    if (!bytes.ok()) return bytes.status();
+    return decode(bytes->data(), bytes->size(), channels, path);
+  });
+}
+
+}  // namespace gs::io

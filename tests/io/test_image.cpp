@@ -1,0 +1,165 @@
+// SPDX-License-Identifier: MIT
+// Image IO tests: PNG/JPEG decode, hostile inputs (truncated, garbage, huge headers), exact area
+// downscaling, float -> 8-bit conversion, and PNG file round trips.
+#define STBI_WRITE_NO_STDIO
+#include <stb_image_write.h>
+
+#include <cmath>
+#include <random>
+
+#include "gs/io/image.h"
+#include "io_test_util.h"
+
+namespace gs::io {
+namespace {
+
+using test::check_error;
+
+Image8 random_image(int w, int h, int c, uint32_t seed) {
+  std::mt19937 rng(seed);
+  Image8 img{w, h, c, std::vector<uint8_t>(size_t(w) * size_t(h) * size_t(c))};
+  for (uint8_t& p : img.pixels) p = uint8_t(rng());
+  return img;
+}
+
+// A smooth image: JPEG reproduces it within a few levels.
+Image8 gradient_image(int w, int h) {
+  Image8 img{w, h, 3, std::vector<uint8_t>(size_t(w) * size_t(h) * 3)};
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      uint8_t* p = &img.pixels[(size_t(y) * size_t(w) + size_t(x)) * 3];
+      p[0] = uint8_t(255 * x / (w - 1)), p[1] = uint8_t(255 * y / (h - 1)), p[2] = 128;
+    }
+  return img;
+}
+
+std::vector<uint8_t> png_of(const Image8& img) {
+  auto png = encode_png(img);
+  REQUIRE(png.ok());
+  return *png;
+}
+
+TEST_CASE("PNG encode/decode round trip with channel conversion") {
+  const Image8 rgb = random_image(37, 23, 3, 1);
+  const auto png = png_of(rgb);
+  auto back = decode_image(png.data(), png.size(), 3, "rgb.png");
+  REQUIRE_MESSAGE(back.ok(), back.status().to_string());
+  CHECK(back->width == 37);
+  CHECK(back->height == 23);
+  CHECK(back->channels == 3);
+  CHECK(back->pixels == rgb.pixels);
+
+  const Image8 gray = random_image(5, 4, 1, 2);
+  const auto gpng = png_of(gray);
+  auto as_rgb = decode_image(gpng.data(), gpng.size(), 3, "gray.png");
+  REQUIRE(as_rgb.ok());
+  for (size_t i = 0; i < gray.pixels.size(); ++i)
+    for (int c = 0; c < 3; ++c) CHECK(as_rgb->pixels[i * 3 + size_t(c)] == gray.pixels[i]);
+
+  auto rgba = decode_image(png.data(), png.size(), 4, "rgb.png");
+  REQUIRE(rgba.ok());
+  CHECK(rgba->pixels[3] == 255);
+  check_error(decode_image(png.data(), png.size(), 2, "rgb.png").status(), {"2 channels"});
+  check_error(encode_png(Image8{4, 4, 3, std::vector<uint8_t>(10)}).status(), {"pixel buffer size"});
+}
+
+TEST_CASE("JPEG decodes close to the encoded image") {
+  const Image8 img = gradient_image(64, 48);
+  std::vector<uint8_t> jpg;
+  auto sink = [](void* ctx, void* data, int size) {
+    auto* out = static_cast<std::vector<uint8_t>*>(ctx);
+    out->insert(out->end(), static_cast<uint8_t*>(data), static_cast<uint8_t*>(data) + size);
+  };
+  REQUIRE(stbi_write_jpg_to_func(sink, &jpg, 64, 48, 3, img.pixels.data(), 95) != 0);
+  auto back = decode_image(jpg.data(), jpg.size(), 3, "g.jpg");
+  REQUIRE_MESSAGE(back.ok(), back.status().to_string());
+  REQUIRE(back->pixels.size() == img.pixels.size());
+  double mae = 0;
+  for (size_t i = 0; i < img.pixels.size(); ++i) mae += std::abs(int(back->pixels[i]) - int(img.pixels[i]));
+  mae /= double(img.pixels.size());
+  // Quality 95 on a smooth gradient: typically ~1 level; 3 leaves room for encoder differences.
+  CHECK(mae < 3.0);
+}
+
+TEST_CASE("hostile image bytes give errors and not crashes") {
+  const auto png = png_of(random_image(40, 30, 3, 3));
+  for (size_t n : {size_t(0), size_t(5), size_t(8), size_t(20), size_t(33), size_t(60), png.size() / 2, png.size() - 13}) {
+    auto r = decode_image(png.data(), n, 3, "cut.png");
+    check_error(r.status(), {"cut.png"});
+  }
+  const std::vector<uint8_t> garbage = {'G', 'I', 'F', '8', '9', 'a', 1, 2, 3, 4, 5, 6, 7, 8};
+  check_error(decode_image(garbage.data(), garbage.size(), 3, "x.gif").status(), {"x.gif", "unknown image format"});
+
+  // IHDR width/height (big-endian, bytes 16..23) patched to 100000 x 100000: refused from the header.
+  auto huge = png;
+  for (int k : {16, 20}) huge[size_t(k)] = 0, huge[size_t(k) + 1] = 0x01, huge[size_t(k) + 2] = 0x86, huge[size_t(k) + 3] = 0xA0;
+  check_error(decode_image(huge.data(), huge.size(), 3, "huge.png").status(), {"huge.png", "100000x100000"});
+
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 300; ++trial) {
+    auto bytes = png;
+    for (int k = 0; k < 4; ++k) bytes[8 + rng() % (bytes.size() - 8)] = uint8_t(rng());
+    auto r = decode_image(bytes.data(), bytes.size(), 3, "fuzz.png");
+    if (r.ok()) CHECK(r->pixels.size() == size_t(r->width) * size_t(r->height) * 3);
+  }
+}
+
+TEST_CASE("read_image and write_png round trip through a file") {
+  test::TempDir dir;
+  const Image8 img = random_image(9, 7, 3, 4);
+  REQUIRE(write_png(dir / "a.png", img).ok());
+  auto back = read_image(dir / "a.png");
+  REQUIRE(back.ok());
+  CHECK(back->pixels == img.pixels);
+  check_error(read_image(dir / "missing.png").status(), {dir / "missing.png"});
+  test::write_text(dir / "bad.png", "definitely not an image");
+  check_error(read_image(dir / "bad.png").status(), {dir / "bad.png", "unknown image format"});
+}
+
+TEST_CASE("resize_area: integer ratios give the exact rounded block mean") {
+  for (int k : {2, 3}) {
+    const Image8 src = random_image(12 * k, 7 * k, 3, uint32_t(10 + k));
+    const Image8 dst = resize_area(src, 12, 7);
+    REQUIRE(dst.width == 12);
+    REQUIRE(dst.height == 7);
+    for (int y = 0; y < 7; ++y)
+      for (int x = 0; x < 12; ++x)
+        for (int c = 0; c < 3; ++c) {
+          int sum = 0;
+          for (int j = 0; j < k; ++j)
+            for (int i = 0; i < k; ++i) sum += src.pixels[((size_t(y * k + j) * size_t(src.width)) + size_t(x * k + i)) * 3 + size_t(c)];
+          const int expect = (2 * sum + k * k) / (2 * k * k);  // round half up
+          CHECK(dst.pixels[(size_t(y) * 12 + size_t(x)) * 3 + size_t(c)] == expect);
+        }
+  }
+}
+
+TEST_CASE("resize_area: non-integer ratios keep constants and the mean") {
+  Image8 flat{10, 7, 1, std::vector<uint8_t>(70, 77)};
+  const Image8 d = resize_area(flat, 3, 4);
+  REQUIRE(d.pixels.size() == 12);
+  for (uint8_t p : d.pixels) CHECK(p == 77);
+  const Image8 src = random_image(30, 20, 1, 9);
+  const Image8 small = resize_area(src, 7, 6);
+  double m0 = 0, m1 = 0;
+  for (uint8_t p : src.pixels) m0 += p;
+  for (uint8_t p : small.pixels) m1 += p;
+  // Area weights sum to the same total; only per-pixel rounding (<= 0.5) moves the mean.
+  CHECK(std::abs(m0 / 600.0 - m1 / 42.0) <= 0.5);
+  CHECK(resize_area(src, 0, 5).empty());
+}
+
+TEST_CASE("image_from_float_rgb clamps and rounds") {
+  const float in[6] = {-1.0f, 0.0f, 0.5f, 1.0f, 2.0f, std::nanf("")};
+  const Image8 img = image_from_float_rgb(in, 2, 1);
+  REQUIRE(img.pixels.size() == 6);
+  CHECK(img.pixels[0] == 0);
+  CHECK(img.pixels[1] == 0);
+  CHECK(img.pixels[2] == 128);  // 127.5 rounds up
+  CHECK(img.pixels[3] == 255);
+  CHECK(img.pixels[4] == 255);
+  CHECK(img.pixels[5] == 0);
+}
+
+}  // namespace
+}  // namespace gs::io
