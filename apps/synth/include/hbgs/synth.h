@@ -1,0 +1,92 @@
+// SPDX-License-Identifier: MIT
+// `hbgs synth`: the built-in ground-truth scene. A seeded procedural scene (textured ground plane
+// plus a few textured meshes) is ray-traced with Embree 3 into a COLMAP dataset whose poses,
+// intrinsics and sparse points are exactly consistent with the rendered images.
+//
+// World frame: right-handed, metres, z up, ground plane z = 0; the objects sit around the origin.
+// Cameras follow COLMAP/hbgs: x_cam = R x_world + t, x right, y down, z forward, pixel centres at
+// (i + 0.5, j + 0.5), u = fx x/z + cx, v = fy y/z + cy.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gs/camera.h"
+#include "gs/io/image.h"
+#include "gs/status.h"
+
+namespace hbgs::synth {
+
+struct SynthOptions {
+  uint64_t seed = 1;          // selects object placement, textures, camera jitter and points
+  int width = 256;            // image size, pixels
+  int height = 192;
+  int arc_views = 16;         // forward-facing arc (~80 degrees) in front of the scene
+  int orbit_views = 24;       // full orbit at a higher elevation
+  int num_points = 6000;      // sparse SfM points written to points3D.txt
+  float point_noise = 0.002f; // std-dev of the Gaussian noise added to each point, world units
+  bool verbose = false;       // progress on stderr
+  int samples_per_axis = 2;   // anti-aliasing: samples_per_axis^2 jittered rays per pixel
+  int threads = 0;            // worker threads; 0 = all hardware threads (output never depends on it)
+};
+
+struct SynthSummary {
+  int num_views;
+  int num_points;  // fewer than requested only if the scene could not supply enough visible points
+  double seconds;  // wall time of generate_scene
+};
+
+// Writes out_dir/images/NNNN.png and out_dir/sparse/0/{cameras,images,points3D}.txt.
+// Views are named in order: the arc views first (0000 .. arc_views-1), then the orbit views.
+// Rig: the arc spans 80 degrees on the -y side, ~4.6 m from the layout centre (0.1, 0.2, 0.45) at
+// ~16 degrees elevation; the orbit is a full circle ~5 m out at ~34 degrees; every camera looks at
+// the centre, with a few centimetres of seeded jitter in position and look-at point.
+// Sparse points: surface hits of seeded pixel-centre rays plus N(0, point_noise) noise, coloured
+// by the rendered pixel, each with a track of every view that sees it (>= 2 views when there are
+// two or more) and the exact projections stored as POINTS2D.
+// One shared PINHOLE camera: fx = fy = 0.9 * width rounded to 1/4 px (exact in float),
+// cx = width / 2, cy = height / 2. Identical options give byte-identical files.
+gs::Expected<SynthSummary> generate_scene(const SynthOptions& options, const std::string& out_dir);
+
+// The cameras generate_scene uses for these options (intrinsics + pose, in view order); empty if
+// the options are invalid. The poses are exactly those gs::io::pose_from_colmap recovers from the
+// written qvec/tvec, and the images are rendered with them.
+std::vector<gs::Camera> make_cameras(const SynthOptions& options);
+
+// A closest-hit query result.
+struct SceneHit {
+  double t = 0;                 // ray parameter: position = origin + t * dir (metres if |dir| = 1)
+  double position[3] = {0, 0, 0};
+  double normal[3] = {0, 0, 0}; // unit shading normal, facing the ray origin
+  int object = -1;              // 0 = ground plane, 1.. = the objects
+};
+
+// The ray-traced scene for a seed, exposed so tests and tools can check a dataset against the
+// ground-truth geometry and shading. Thread-safe for concurrent queries once created.
+class Scene {
+ public:
+  static gs::Expected<std::unique_ptr<Scene>> create(uint64_t seed);
+  ~Scene();
+  Scene(const Scene&) = delete;
+  Scene& operator=(const Scene&) = delete;
+
+  int num_objects() const;  // including the ground plane
+  // Closest hit along origin + t dir, t > 0; false if the ray escapes to the sky.
+  bool intersect(const double origin[3], const double dir[3], SceneHit* hit) const;
+  // True if anything is hit for t in (0, tfar).
+  bool occluded(const double origin[3], const double dir[3], double tfar) const;
+  // Shaded colour seen along a ray (sky if nothing is hit), display values in [0, 1].
+  void radiance(const double origin[3], const double dir[3], float rgb[3]) const;
+  // Renders an 8-bit RGB view with samples_per_axis^2 jittered samples per pixel; the jitter is
+  // a function of (jitter_seed, pixel, sample) only, so the result does not depend on `threads`.
+  gs::io::Image8 render(const gs::Camera& camera, int samples_per_axis, uint64_t jitter_seed, int threads = 0) const;
+
+ private:
+  struct Impl;
+  explicit Scene(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hbgs::synth
