@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Replaces global operator new/delete and interposes malloc/calloc/realloc to count allocations.
-// Under AddressSanitizer the malloc interposer is left out (ASan owns malloc); operator new is
+// Under AddressSanitizer or ThreadSanitizer the malloc interposer is left out (the sanitizer owns malloc); operator new is
 // still counted, which covers every allocation made by C++ code in hbgs.
 #include "support/alloc_counter.h"
 
@@ -8,7 +8,7 @@
 #include <cstdlib>
 #include <new>
 
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 #define GS_COUNT_MALLOC 0
 #else
 #define GS_COUNT_MALLOC 1
