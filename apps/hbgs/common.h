@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: MIT
+// Shared glue for the hbgs subcommands: how a subcommand registers itself, exit codes, error and
+// progress printing, and the small timing/statistics helpers the summaries use.
+#pragma once
+
+#include <algorithm>
+#include <cstdio>
+#include <functional>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "gs/platform/clock.h"
+
+namespace hbgs::cli {
+
+// Process exit codes (CLI11 parse errors are mapped to kExitUsage in main).
+constexpr int kExitOk = 0;
+constexpr int kExitRuntime = 1;
+constexpr int kExitUsage = 2;
+
+// A registered subcommand: its CLI11 node, and what to run once it has been parsed.
+struct Command {
+  CLI::App* app = nullptr;
+  std::function<int()> run;
+};
+
+Command add_synth_command(CLI::App& parent);
+Command add_render_command(CLI::App& parent);
+Command add_bench_command(CLI::App& parent);
+
+// `hbgs bench ARGS...` bypasses CLI11 (except `hbgs bench --help`): ARGS go to bench_render as given.
+bool bench_passes_through(int argc, char** argv);
+int run_bench(const std::vector<std::string>& pass_through);
+
+// "hbgs <cmd>: error: <message>" on stderr; returns kExitRuntime so callers can `return fail(...)`.
+inline int fail(const char* cmd, const std::string& message) {
+  std::fflush(stdout);
+  std::fprintf(stderr, "hbgs %s: error: %s\n", cmd, message.c_str());
+  return kExitRuntime;
+}
+
+// Wall-clock stopwatch on the platform's monotonic clock.
+class Stopwatch {
+ public:
+  Stopwatch() : start_(gs::platform::now_seconds()) {}
+  double seconds() const { return gs::platform::now_seconds() - start_; }
+  double ms() const { return 1e3 * seconds(); }
+
+ private:
+  double start_;
+};
+
+inline double median_of(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(mid), v.end());
+  const double hi = v[mid];
+  if (v.size() % 2 == 1) return hi;
+  const double lo = *std::max_element(v.begin(), v.begin() + std::ptrdiff_t(mid));
+  return 0.5 * (lo + hi);
+}
+
+inline double mean_of(const std::vector<double>& v) {
+  return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / double(v.size());
+}
+
+}  // namespace hbgs::cli
