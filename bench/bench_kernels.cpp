@@ -125,6 +125,10 @@ int run(int argc, char** argv) {
   std::printf("  CPU:     %s, clock %s\n", mi.cpu_model.c_str(), format_mhz(mi).c_str());
   std::printf("  best:    %s\n", simd::best_kernel_table().isa);
   std::printf("  timing:  calls batched to >= 2 ms per repetition, %d reps, median (min) per call\n", reps);
+  const double load0 = load_average();
+  if (load0 >= 0)
+    std::printf("  load:    %.2f (1-min average, %u hardware threads)%s\n", load0, mi.hw_threads,
+                load0 > 0.75 * mi.hw_threads ? "; the machine is busy: prefer the min figures" : "");
 
   HarnessOptions ho;
   ho.warmup = 1;
@@ -243,6 +247,7 @@ int run(int argc, char** argv) {
     j["cpu"] = mi.cpu_model;
     j["cpu_mhz"] = mi.cpu_mhz;
     j["best_isa"] = simd::best_kernel_table().isa;
+    j["load_average"] = load0;
     j["tile"] = nlohmann::json::array();
     for (const TileRow& r : tile_rows)
       j["tile"].push_back({{"isa", r.isa}, {"splats", r.count}, {"fwd_ms", tj(r.fwd)}, {"bwd_ms", tj(r.bwd)},
