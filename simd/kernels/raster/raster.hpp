@@ -8,7 +8,8 @@
 // each pixel batch the state (T, colour, depth, last) stays in registers while the chunk's splats
 // are blended, and a batch whose pixels have all stopped leaves the loop early.
 // Backward: splat-major (gradients accumulate in registers per splat, one horizontal sum per
-// splat), each row clipped to the exact x-interval of the splat's alpha >= 1/255 ellipse.
+// splat); the colour behind each splat is carried only as its dot product with the pixel's
+// cotangent, so the per-pixel state is 3 scalars instead of 7.
 //
 // Semantics are those of raster_ref.cpp, which is the spec. Rounding differs slightly: the
 // exponent is evaluated per row as (A dx + B) dx + C, and exp is a range-reduced degree-6
@@ -209,37 +210,16 @@ struct RasterKernels {
     }
   }
 
-  // Columns [*c0, *c1] (tile-local, batch-aligned) where row dy can reach alpha >= 1/255: the
-  // x-interval of the ellipse a dx^2 + 2 b dx dy + c dy^2 <= 2 tau, plus a 1 px margin.
-  static bool row_span(const float* s, float two_tau, float dy, const TileGeometry& g, int32_t bx0, int32_t bx1,
-                       int32_t* c0, int32_t* c1) {
-    const float a = s[kSplatA], b = s[kSplatB], c = s[kSplatC];
-    float lo = float(bx0), hi = float(bx1);
-    if (a > 0.0f && a * c - b * b > 0.0f) {
-      const float disc = dy * dy * (b * b - a * c) + a * two_tau;
-      if (disc < 0.0f) return false;
-      const float root = std::sqrt(disc);
-      // dx = mean - pixel centre in [(-b dy - root)/a, (-b dy + root)/a]
-      const float centre = s[kSplatMx] - float(g.x0) - 0.5f;
-      lo = std::max(lo, std::floor(centre - (-b * dy + root) / a - 1.0f));
-      hi = std::min(hi, std::ceil(centre - (-b * dy - root) / a + 1.0f));
-      if (lo > hi) return false;
-    }
-    *c0 = int32_t(lo) / N * N;
-    *c1 = int32_t(hi) / N * N;
-    return true;
-  }
-
   static void bwd(const RasterParams* p, int32_t tile_x, int32_t tile_y, const float* splats, int32_t count,
                   const float* final_T, const int32_t* last_in, const float* v_rgb, float* v_splats) {
     std::fill(v_splats, v_splats + size_t(count) * kSplatStride, 0.0f);
     const TileGeometry g = tile_geometry(p->width, p->height, tile_x, tile_y);
-    // Per-pixel state, walking back to front: transmittance in front of the current splat, colour
-    // blended behind it, the previous (nearer-to-back) splat's alpha and colour.
+    // Per-pixel state, walking back to front. The colour blended behind a splat only enters the
+    // gradient dotted with the pixel's cotangent v, so it is kept as that scalar:
+    //   behind_v(i) = alpha(i+1) (c(i+1) . v) + (1 - alpha(i+1)) behind_v(i+1).
     alignas(64) float T[kTilePixels], T_fin[kTilePixels], last[kTilePixels], v_bg[kTilePixels];
     alignas(64) float vr[kTilePixels], vg[kTilePixels], vb[kTilePixels];
-    alignas(64) float br[kTilePixels], bg_[kTilePixels], bb[kTilePixels];
-    alignas(64) float na[kTilePixels], nr[kTilePixels], ng[kTilePixels], nb[kTilePixels];
+    alignas(64) float behind_v[kTilePixels], next_alpha[kTilePixels], next_cv[kTilePixels];
     int32_t max_last = 0;
     for (int i = 0; i < kTilePixels; ++i) {
       const int lx = i % kTileSize, ly = i / kTileSize;
@@ -252,7 +232,7 @@ struct RasterKernels {
       vg[i] = inside ? v_rgb[3 * pix + 1] : 0.0f;
       vb[i] = inside ? v_rgb[3 * pix + 2] : 0.0f;
       v_bg[i] = p->background[0] * vr[i] + p->background[1] * vg[i] + p->background[2] * vb[i];
-      br[i] = bg_[i] = bb[i] = na[i] = nr[i] = ng[i] = nb[i] = 0.0f;
+      behind_v[i] = next_alpha[i] = next_cv[i] = 0.0f;
     }
     const B centres = lane_centres();
     for (int32_t i = std::min(max_last, count) - 1; i >= 0; --i) {
@@ -260,28 +240,25 @@ struct RasterKernels {
       int32_t bx0, by0, bx1, by1;
       float two_tau;
       if (!splat_support_box(s, g, &bx0, &by0, &bx1, &by1, &two_tau)) continue;
-      const float threshold = -0.5f * two_tau - 1e-3f;
+      const B threshold(-0.5f * two_tau - 1e-3f);
       const B idx = B(float(i));
       const B cr(s[kSplatR]), cg(s[kSplatG]), cb(s[kSplatBlue]), op(s[kSplatOpacity]);
       const B ca(s[kSplatA]), cbb(s[kSplatB]), cc(s[kSplatC]);
       const B half_a(-0.5f * s[kSplatA]);
       B acc_r(0.0f), acc_g(0.0f), acc_b(0.0f), acc_op(0.0f), acc_mx(0.0f), acc_my(0.0f), acc_a(0.0f), acc_b2(0.0f),
           acc_c(0.0f);
+      const int32_t c0 = bx0 / N * N, c1 = bx1 / N * N;
       for (int32_t ly = by0; ly <= by1; ++ly) {
-        const float pyf = float(g.y0 + ly) + 0.5f;
-        const float dyf = s[kSplatMy] - pyf;
-        int32_t c0, c1;
-        if (!row_span(s, two_tau, dyf, g, bx0, bx1, &c0, &c1)) continue;
+        const float dyf = s[kSplatMy] - (float(g.y0 + ly) + 0.5f);
         const B dy(dyf);
         const B row_b(-s[kSplatB] * dyf), row_c(-0.5f * s[kSplatC] * dyf * dyf);
         for (int32_t lx = c0; lx <= c1; lx += N) {
           const int o = ly * kTileSize + lx;
           const M active = idx < B::load_aligned(last + o);
           if (!xsimd::any(active)) continue;
-          const B px = B(float(g.x0 + lx)) + centres;
-          const B dx = B(s[kSplatMx]) - px;
+          const B dx = B(s[kSplatMx]) - (B(float(g.x0 + lx)) + centres);
           const B power = (half_a * dx + row_b) * dx + row_c;
-          if (!xsimd::any(power >= B(threshold))) continue;
+          if (!xsimd::any(power >= threshold)) continue;
           const B G = exp_nonpositive(power);
           const B raw = op * G;
           const M clamped = raw > B(kAlphaMax);
@@ -297,23 +274,14 @@ struct RasterKernels {
           acc_r += w * pvr;
           acc_g += w * pvg;
           acc_b += w * pvb;
-          const B nalpha = B::load_aligned(na + o);
-          const B one_minus_next = B(1.0f) - nalpha;
-          const B old_r = B::load_aligned(br + o), old_g = B::load_aligned(bg_ + o), old_b = B::load_aligned(bb + o);
-          const B behind_r = xsimd::select(use, nalpha * B::load_aligned(nr + o) + one_minus_next * old_r, old_r);
-          const B behind_g = xsimd::select(use, nalpha * B::load_aligned(ng + o) + one_minus_next * old_g, old_g);
-          const B behind_b = xsimd::select(use, nalpha * B::load_aligned(nb + o) + one_minus_next * old_b, old_b);
-          behind_r.store_aligned(br + o);
-          behind_g.store_aligned(bg_ + o);
-          behind_b.store_aligned(bb + o);
-          B v_alpha = (cr - behind_r) * pvr + (cg - behind_g) * pvg + (cb - behind_b) * pvb;
-          v_alpha = v_alpha * t - B::load_aligned(T_fin + o) / one_minus * B::load_aligned(v_bg + o);
-          xsimd::select(use, alpha, nalpha).store_aligned(na + o);
-          xsimd::select(use, cr, B::load_aligned(nr + o)).store_aligned(nr + o);
-          xsimd::select(use, cg, B::load_aligned(ng + o)).store_aligned(ng + o);
-          xsimd::select(use, cb, B::load_aligned(nb + o)).store_aligned(nb + o);
-          const M grad = use & !clamped;
-          const B v_op = xsimd::select(grad, G * v_alpha, B(0.0f));
+          const B cv = cr * pvr + cg * pvg + cb * pvb;  // this splat's colour . v
+          const B na = B::load_aligned(next_alpha + o), old_behind = B::load_aligned(behind_v + o);
+          const B behind = xsimd::select(use, na * B::load_aligned(next_cv + o) + (B(1.0f) - na) * old_behind, old_behind);
+          behind.store_aligned(behind_v + o);
+          xsimd::select(use, alpha, na).store_aligned(next_alpha + o);
+          xsimd::select(use, cv, B::load_aligned(next_cv + o)).store_aligned(next_cv + o);
+          const B v_alpha = (cv - behind) * t - B::load_aligned(T_fin + o) / one_minus * B::load_aligned(v_bg + o);
+          const B v_op = xsimd::select(use & !clamped, G * v_alpha, B(0.0f));
           acc_op += v_op;
           const B v_power = op * v_op;
           acc_mx += v_power * -(ca * dx + cbb * dy);
