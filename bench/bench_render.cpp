@@ -477,7 +477,7 @@ int run(int argc, char** argv) {
   bool quick = false, all = false;
   app.add_option("--sizes", sizes_s, "image sizes WxH, comma separated")->capture_default_str();
   app.add_option("--counts", counts_s, "Gaussian counts (10000, 100k, 1M), comma separated")->capture_default_str();
-  app.add_option("--reps", reps, "timed repetitions per measurement (after 1 warm-up)")->capture_default_str();
+  app.add_option("--reps", reps, "timed forward+backward repetitions per configuration (after 1 untimed pass)")->capture_default_str();
   app.add_option("--max-seconds", max_seconds,
                  "stop adding repetitions once a configuration has been timed this long (at least 2 reps; 0: no limit)")
       ->capture_default_str();
