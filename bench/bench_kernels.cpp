@@ -53,6 +53,7 @@ std::vector<float> tile_splats(int count, uint64_t seed) {
     r.v[simd::kSplatG] = float(u01(rng));
     r.v[simd::kSplatBlue] = float(u01(rng));
     r.v[simd::kSplatDepth] = float(2 + 8 * u01(rng));
+    simd::splat_support(r.v + simd::kSplatA, r.v[simd::kSplatOpacity], r.v + simd::kSplatTwoTau);
   }
   std::sort(recs.begin(), recs.end(), [](const Rec& a, const Rec& b) { return a.v[simd::kSplatDepth] < b.v[simd::kSplatDepth]; });
   std::vector<float> out(size_t(count) * simd::kSplatStride + kPad, 0.0f);

@@ -87,6 +87,10 @@ Forward<T> render_fwd(const Scene<T>& s, const View<T>& v) {
     r[simd::kSplatOpacity] = s.opacities[g];
     r[simd::kSplatR] = f.colors[3 * g]; r[simd::kSplatG] = f.colors[3 * g + 1]; r[simd::kSplatBlue] = f.colors[3 * g + 2];
     r[simd::kSplatDepth] = f.depths[g];
+    float support[3];
+    const float conic[3] = {float(f.conics[3 * g]), float(f.conics[3 * g + 1]), float(f.conics[3 * g + 2])};
+    simd::splat_support(conic, float(s.opacities[g]), support);
+    for (int k = 0; k < 3; ++k) r[simd::kSplatTwoTau + k] = T(support[k]);
   }
   // Blend.
   const size_t P = size_t(v.width) * v.height;

@@ -57,7 +57,7 @@ struct Renderer::Impl {
   uint8_t* arena = nullptr;
   size_t arena_bytes = 0;
   // per Gaussian
-  float *means2d, *conics, *depths, *colors;
+  float *means2d, *conics, *depths, *colors, *support;  // support: [N, 3] (splat_support)
   int32_t *radii, *rects;
   float *acc_means2d, *acc_conics, *acc_opacities, *acc_colors;
   float *scratch_v_means, *scratch_v_log_scales, *scratch_v_quats;
@@ -88,6 +88,7 @@ struct Renderer::Impl {
     conics = c.take<float>(G * 3);
     depths = c.take<float>(G);
     colors = c.take<float>(G * 3);
+    support = c.take<float>(G * 3);
     radii = c.take<int32_t>(G);
     rects = c.take<int32_t>(G * 4);
     acc_means2d = c.take<float>(G * 2);
@@ -256,8 +257,11 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
   auto project = [&](size_t b, size_t e, int) {
     m.kernels->project_fwd(&pp, e - b, params.means + 3 * b, params.log_scales + 3 * b, params.quats + 4 * b,
                            m.means2d + 2 * b, m.conics + 3 * b, m.depths + b, m.radii + b);
-    for (size_t i = b; i < e; ++i)
-      if (m.radii[i] > 0) simd::tile_rect(&pp, m.means2d + 2 * i, m.radii[i], m.rects + 4 * i);
+    for (size_t i = b; i < e; ++i) {
+      if (m.radii[i] == 0) continue;
+      simd::tile_rect(&pp, m.means2d + 2 * i, m.radii[i], m.rects + 4 * i);
+      simd::splat_support(m.conics + 3 * i, params.opacities[i], m.support + 3 * i);
+    }
     if (params.sh) simd::sh_fwd_ref<float>(e - b, params.sh_degree, params.means + 3 * b,
                                            params.sh + (b * (params.sh_degree + 1) * (params.sh_degree + 1)) * 3,
                                            m.campos, m.colors + 3 * b);
@@ -313,6 +317,9 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
         s[simd::kSplatG] = colors[3 * g + 1];
         s[simd::kSplatBlue] = colors[3 * g + 2];
         s[simd::kSplatDepth] = m.depths[g];
+        s[simd::kSplatTwoTau] = m.support[3 * g];
+        s[simd::kSplatExtX] = m.support[3 * g + 1];
+        s[simd::kSplatExtY] = m.support[3 * g + 2];
       }
       const int tx = int(tile) % pp.tiles_x, ty = int(tile) / pp.tiles_x;
       m.kernels->raster_fwd_tile(&m.rp, tx, ty, m.splats + size_t(begin) * simd::kSplatStride,

@@ -40,6 +40,7 @@ std::vector<float> random_splats(std::mt19937_64& rng, int count, float x0, floa
     r[gs::simd::kSplatOpacity] = min_op + (1 - min_op) * u(rng);
     for (int c = 0; c < 3; ++c) r[gs::simd::kSplatR + c] = u(rng);
     r[gs::simd::kSplatDepth] = 1.0f + float(i);
+    gs::simd::splat_support(r + gs::simd::kSplatA, r[gs::simd::kSplatOpacity], r + gs::simd::kSplatTwoTau);
   }
   return s;
 }

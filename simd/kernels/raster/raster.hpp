@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT
 // xsimd tile rasteriser (forward and backward), templated on the architecture. Lanes run over the
 // pixels of a tile row (16 px = 16/N batches). Each splat is clipped to the box outside which its
-// alpha is provably below 1/255 (|d_x| <= sqrt(2 ln(255 o) cov_xx), plus a 1 px margin for
-// rounding), so small splats touch only a few batches.
+// alpha is provably below 1/255 (splat_support in splat.h, computed once per Gaussian), so small
+// splats touch only a few batches.
 //
 // Forward: batch-major. Splats are taken in chunks of kChunk (boxes precomputed on the stack); for
 // each pixel batch the state (T, colour, depth, last) stays in registers while the chunk's splats
@@ -44,21 +44,12 @@ inline TileGeometry tile_geometry(int32_t width, int32_t height, int32_t tile_x,
   return g;
 }
 
-// Inclusive tile-local pixel box [bx0, bx1] x [by0, by1] where the splat can reach alpha >= 1/255.
-// Returns false if it reaches no pixel of the tile.
+// Inclusive tile-local pixel box [bx0, bx1] x [by0, by1] where the splat can reach alpha >= 1/255,
+// from the support fields of its record. Returns false if it reaches no pixel of the tile.
 inline bool splat_support_box(const float* s, const TileGeometry& g, int32_t* bx0, int32_t* by0, int32_t* bx1,
-                              int32_t* by1, float* two_tau_out = nullptr) {
-  const float opacity = s[kSplatOpacity];
-  if (!(opacity * 255.0f >= 1.0f)) return false;  // alpha = o G <= o < 1/255 everywhere
-  const float a = s[kSplatA], b = s[kSplatB], c = s[kSplatC];
-  const float det = a * c - b * b;
-  float ex = float(kTileSize), ey = float(kTileSize);  // non-PD conic: no bound, use the whole tile
-  const float two_tau = 2.0f * std::log(255.0f * opacity);
-  if (two_tau_out) *two_tau_out = two_tau;
-  if (det > 0.0f && a > 0.0f) {
-    ex = std::sqrt(two_tau * c / det) + 1.0f;
-    ey = std::sqrt(two_tau * a / det) + 1.0f;
-  }
+                              int32_t* by1) {
+  const float ex = s[kSplatExtX], ey = s[kSplatExtY];
+  if (!(ex >= 0.0f)) return false;  // alpha < 1/255 everywhere
   // Pixel centre of local column i is x0 + i + 0.5.
   const float lx = s[kSplatMx] - float(g.x0) - 0.5f, ly = s[kSplatMy] - float(g.y0) - 0.5f;
   const float fx0 = std::max(lx - ex, -1.0f), fx1 = std::min(lx + ex, float(kTileSize));
@@ -71,8 +62,6 @@ inline bool splat_support_box(const float* s, const TileGeometry& g, int32_t* bx
   return *bx0 <= *bx1 && *by0 <= *by1;
 }
 
-// exp(x) for x <= 0 (inputs below -80 are clamped; alpha is then far below 1/255 anyway).
-// Cody-Waite reduction x = n ln2 + r, |r| <= ln2/2, Taylor degree 6 (error r^7/7! < 1.3e-7).
 template <class B>
 inline B exp_nonpositive(B x) {
   using I = xsimd::batch<int32_t, typename B::arch_type>;
@@ -136,15 +125,14 @@ struct RasterKernels {
       for (int32_t k = 0; k < cn; ++k) {
         const float* s = splats + size_t(c0 + k) * kSplatStride;
         int32_t bx0, by0, bx1, by1;
-        float two_tau;
-        if (!splat_support_box(s, g, &bx0, &by0, &bx1, &by1, &two_tau)) continue;
+        if (!splat_support_box(s, g, &bx0, &by0, &bx1, &by1)) continue;
         ChunkSplat& c = chunk[nb];
         c.x0 = int16_t(bx0); c.x1 = int16_t(bx1);
         c.mx = s[kSplatMx]; c.my = s[kSplatMy];
         c.half_a = -0.5f * s[kSplatA]; c.neg_b = -s[kSplatB]; c.half_c = -0.5f * s[kSplatC];
         c.opacity = s[kSplatOpacity];
         c.rgbd[0] = s[kSplatR]; c.rgbd[1] = s[kSplatG]; c.rgbd[2] = s[kSplatBlue]; c.rgbd[3] = s[kSplatDepth];
-        c.threshold = -0.5f * two_tau - 1e-3f;
+        c.threshold = -0.5f * s[kSplatTwoTau] - 1e-3f;
         c.index1 = float(c0 + k + 1);
         for (int32_t y = by0; y <= by1; ++y) rows[y][row_count[y]++] = uint8_t(nb);
         ++nb;
@@ -238,9 +226,8 @@ struct RasterKernels {
     for (int32_t i = std::min(max_last, count) - 1; i >= 0; --i) {
       const float* s = splats + size_t(i) * kSplatStride;
       int32_t bx0, by0, bx1, by1;
-      float two_tau;
-      if (!splat_support_box(s, g, &bx0, &by0, &bx1, &by1, &two_tau)) continue;
-      const B threshold(-0.5f * two_tau - 1e-3f);
+      if (!splat_support_box(s, g, &bx0, &by0, &bx1, &by1)) continue;
+      const B threshold(-0.5f * s[kSplatTwoTau] - 1e-3f);
       const B idx = B(float(i));
       const B cr(s[kSplatR]), cg(s[kSplatG]), cb(s[kSplatBlue]), op(s[kSplatOpacity]);
       const B ca(s[kSplatA]), cbb(s[kSplatB]), cc(s[kSplatC]);

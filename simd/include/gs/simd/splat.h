@@ -8,6 +8,7 @@
 // skipped, stop before transmittance falls below 1e-4.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 
@@ -29,10 +30,37 @@ constexpr float kTransmittanceMin = 1e-4f;
 constexpr float kEigenFloor = 0.1f;      // floor under (mid^2 - det) before the sqrt for the radius
 
 // Packed per-intersection record written by binning, read by the tile kernels (front to back).
-// [mean2d.x, mean2d.y, conic.a, conic.b, conic.c, opacity, r, g, b, depth]; power at pixel offset
-// d = mean2d - pixel_centre is -0.5 (a dx^2 + 2 b dx dy + c dy^2).
-constexpr int kSplatStride = 10;
-enum SplatField { kSplatMx = 0, kSplatMy, kSplatA, kSplatB, kSplatC, kSplatOpacity, kSplatR, kSplatG, kSplatBlue, kSplatDepth };
+// [mean2d.x, mean2d.y, conic.a, conic.b, conic.c, opacity, r, g, b, depth, two_tau, ext_x, ext_y];
+// power at pixel offset d = mean2d - pixel_centre is -0.5 (a dx^2 + 2 b dx dy + c dy^2). The last
+// three (see splat_support) depend only on the Gaussian, so they are computed once per Gaussian
+// rather than once per tile it touches; the reference kernels do not read them.
+constexpr int kSplatStride = 13;
+enum SplatField {
+  kSplatMx = 0, kSplatMy, kSplatA, kSplatB, kSplatC, kSplatOpacity, kSplatR, kSplatG, kSplatBlue, kSplatDepth,
+  kSplatTwoTau, kSplatExtX, kSplatExtY
+};
+
+// Support of a splat: two_tau = 2 ln(255 o), so alpha >= 1/255 needs power >= -two_tau / 2, and the
+// half-extents (px) of the box outside which alpha is provably below 1/255 (|d_x| <= sqrt(two_tau
+// cov_xx), cov = conic^-1), plus a 1 px margin for rounding. out = [two_tau, ext_x, ext_y]; a splat
+// that can never reach 1/255 gets negative extents; a non-positive-definite conic gets an unbounded
+// box (1e30), which the kernels clip to the tile.
+inline void splat_support(const float* conic, float opacity, float* out) {
+  const float a = conic[0], b = conic[1], c = conic[2];
+  if (!(opacity * 255.0f >= 1.0f)) {
+    out[0] = -1.0f; out[1] = out[2] = -1.0f;
+    return;
+  }
+  const float two_tau = 2.0f * std::log(255.0f * opacity);
+  const float det = a * c - b * b;
+  out[0] = two_tau;
+  if (det > 0.0f && a > 0.0f) {
+    out[1] = std::sqrt(two_tau * c / det) + 1.0f;
+    out[2] = std::sqrt(two_tau * a / det) + 1.0f;
+  } else {
+    out[1] = out[2] = 1e30f;
+  }
+}
 
 // Per-camera constants for projection, precomputed once per frame.
 template <class T>
