@@ -6,6 +6,7 @@
 #include <cstring>
 #include <xsimd/xsimd.hpp>
 
+#include "gs/simd/loss.h"
 #include "gs/simd/ref.h"
 
 namespace gs::simd {
@@ -30,7 +31,7 @@ GS_DECLARE_VARIANT(neon)
 const KernelTable& ref_kernel_table() {
   static const KernelTable table = {
       "ref", 1, &project_fwd_ref<float>, &project_bwd_ref<float>, &raster_fwd_tile_ref<float>,
-      &raster_bwd_tile_ref<float>,
+      &raster_bwd_tile_ref<float>, &loss_fwd_ref<float>, &loss_bwd_ref<float>,
   };
   return table;
 }

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "gs/simd/loss.h"
 #include "gs/simd/splat.h"
 
 namespace gs::simd {
@@ -23,6 +24,10 @@ using RasterFwdTileFn = void (*)(const RasterParams*, int32_t tile_x, int32_t ti
 using RasterBwdTileFn = void (*)(const RasterParams*, int32_t tile_x, int32_t tile_y, const float* splats,
                                  int32_t count, const float* final_T, const int32_t* last, const float* v_rgb,
                                  float* v_splats);
+using LossFwdFn = void (*)(const LossParams*, int32_t width, int32_t height, const float* image, const float* target,
+                           float* scratch, double* out_l1, double* out_ssim);
+using LossBwdFn = void (*)(const LossParams*, int32_t width, int32_t height, const float* image, const float* target,
+                           double v_loss, float* scratch, float* v_image, double* out_l1, double* out_ssim);
 
 struct KernelTable {
   const char* isa;  // "ref", "sse2", "avx2", "avx512", "neon64", "neon"
@@ -31,6 +36,8 @@ struct KernelTable {
   ProjectBwdFn project_bwd;
   RasterFwdTileFn raster_fwd_tile;
   RasterBwdTileFn raster_bwd_tile;
+  LossFwdFn loss_fwd;  // photometric loss over a whole [H, W, 3] image (loss.h)
+  LossBwdFn loss_bwd;
 };
 
 // The reference table (always available).
