@@ -5,6 +5,7 @@
 // reduction to Gaussians, projection backward (parallel, pose gradient summed per chunk in order).
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <string>
@@ -25,18 +26,20 @@ constexpr size_t kProjectGrain = 1024;   // Gaussians per projection chunk
 class Carver {
  public:
   explicit Carver(uint8_t* base) : base_(base) {}
+  // Sizes are counted in 64 bits so a 32-bit build detects a plan larger than its address space
+  // instead of wrapping around.
   template <class T>
-  T* take(size_t count) {
+  T* take(uint64_t count) {
     offset_ = (offset_ + kArenaAlign - 1) / kArenaAlign * kArenaAlign;
-    T* p = base_ ? reinterpret_cast<T*>(base_ + offset_) : nullptr;
+    T* p = base_ ? reinterpret_cast<T*>(base_ + size_t(offset_)) : nullptr;
     offset_ += count * sizeof(T) + kExtraBytes;
     return p;
   }
-  size_t bytes() const { return offset_ + kArenaAlign; }
+  uint64_t bytes() const { return offset_ + kArenaAlign; }
 
  private:
   uint8_t* base_;
-  size_t offset_ = 0;
+  uint64_t offset_ = 0;
 };
 
 template <class F>
@@ -81,9 +84,9 @@ struct Renderer::Impl {
   float campos[3];
 
   void carve(Carver& c, const RenderCapacity& cap) {
-    const size_t G = cap.max_gaussians, I = cap.max_isects, P = size_t(cap.max_width) * cap.max_height;
-    const size_t tiles_max = size_t((cap.max_width + simd::kTileSize - 1) / simd::kTileSize) *
-                             size_t((cap.max_height + simd::kTileSize - 1) / simd::kTileSize);
+    const uint64_t G = cap.max_gaussians, I = cap.max_isects, P = uint64_t(cap.max_width) * uint64_t(cap.max_height);
+    const uint64_t tiles_max = uint64_t((cap.max_width + simd::kTileSize - 1) / simd::kTileSize) *
+                               uint64_t((cap.max_height + simd::kTileSize - 1) / simd::kTileSize);
     means2d = c.take<float>(G * 2);
     conics = c.take<float>(G * 3);
     depths = c.take<float>(G);
@@ -121,11 +124,11 @@ Renderer::~Renderer() {
 }
 
 static RenderCapacity resolved(RenderCapacity cap) {
-  if (cap.max_isects == 0) cap.max_isects = 16 * cap.max_gaussians;
+  if (cap.max_isects == 0) cap.max_isects = size_t(std::min<uint64_t>(16 * uint64_t(cap.max_gaussians), SIZE_MAX));
   return cap;
 }
 
-size_t Renderer::plan_bytes(const RenderCapacity& capacity) {
+uint64_t Renderer::plan_bytes(const RenderCapacity& capacity) {
   Impl dry;
   Carver c(nullptr);
   dry.carve(c, resolved(capacity));
@@ -139,15 +142,18 @@ Status Renderer::init(const RenderCapacity& capacity_in, platform::ThreadPool* p
       capacity.max_height > 16384)
     return invalid_argument("render capacity: image size " + std::to_string(capacity.max_width) + "x" +
                             std::to_string(capacity.max_height) + " is outside 1..16384");
-  if (capacity.max_gaussians >= (size_t(1) << 31) || capacity.max_isects >= (size_t(1) << 32))
+  if (uint64_t(capacity.max_gaussians) >= (uint64_t(1) << 31) || uint64_t(capacity.max_isects) >= (uint64_t(1) << 32))
     return invalid_argument("render capacity: at most 2^31 Gaussians and 2^32 intersections");
   if (capacity.max_sh_degree < 0 || capacity.max_sh_degree > 3)
     return invalid_argument("render capacity: SH degree must be 0..3");
-  const size_t bytes = plan_bytes(capacity);
+  const uint64_t bytes = plan_bytes(capacity);
+  if (bytes > uint64_t(SIZE_MAX) / 2)
+    return capacity_exceeded("render arena: the planned " + std::to_string(bytes) +
+                             " bytes exceed this platform's address space");
   std::free(impl_->arena);
-  impl_->arena = static_cast<uint8_t*>(std::aligned_alloc(kArenaAlign, (bytes + kArenaAlign - 1) / kArenaAlign * kArenaAlign));
+  impl_->arena = static_cast<uint8_t*>(std::aligned_alloc(kArenaAlign, size_t(bytes + kArenaAlign - 1) / kArenaAlign * kArenaAlign));
   if (!impl_->arena) return capacity_exceeded("render arena: cannot allocate " + std::to_string(bytes) + " bytes");
-  impl_->arena_bytes = bytes;
+  impl_->arena_bytes = size_t(bytes);
   Carver c(impl_->arena);
   impl_->carve(c, capacity);
   impl_->pool = pool;
@@ -271,18 +277,19 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
 
   // 2. Bin: count intersections per tile, scan, emit keys.
   std::fill(m.tile_offsets, m.tile_offsets + m.tiles + 1, 0u);
-  size_t visible = 0, total = 0;
+  size_t visible = 0;
+  uint64_t total = 0;  // 64-bit: N x tiles can exceed a 32-bit size_t before the capacity check
   for (size_t i = 0; i < n; ++i) {
     if (m.radii[i] == 0) continue;
     ++visible;
     const int32_t* r = m.rects + 4 * i;
-    total += size_t(r[2] - r[0]) * size_t(r[3] - r[1]);
+    total += uint64_t(r[2] - r[0]) * uint64_t(r[3] - r[1]);
     for (int ty = r[1]; ty < r[3]; ++ty)
       for (int tx = r[0]; tx < r[2]; ++tx) ++m.tile_offsets[ty * pp.tiles_x + tx + 1];
   }
   stats_.visible = visible;
-  stats_.isects = total;
-  if (total > capacity_.max_isects)
+  stats_.isects = size_t(std::min<uint64_t>(total, SIZE_MAX));
+  if (total > uint64_t(capacity_.max_isects))
     return capacity_exceeded(std::to_string(total) + " Gaussian-tile intersections exceed the planned " +
                              std::to_string(capacity_.max_isects));
   for (int tile = 0; tile < m.tiles; ++tile) m.tile_offsets[tile + 1] += m.tile_offsets[tile];
@@ -296,7 +303,7 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
     for (int ty = r[1]; ty < r[3]; ++ty)
       for (int tx = r[0]; tx < r[2]; ++tx) m.keys[m.tile_cursor[ty * pp.tiles_x + tx]++] = key;
   }
-  m.num_isects = total;
+  m.num_isects = size_t(total);
 
   // 3. Per tile: sort by (depth, id), pack records, blend.
   auto raster = [&](size_t b, size_t e, int) {

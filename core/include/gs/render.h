@@ -71,8 +71,8 @@ class Renderer {
   Renderer(const Renderer&) = delete;
   Renderer& operator=(const Renderer&) = delete;
 
-  // Bytes the arena needs for a capacity (the dry run).
-  static size_t plan_bytes(const RenderCapacity& capacity);
+  // Bytes the arena needs for a capacity (the dry run), counted in 64 bits on every platform.
+  static uint64_t plan_bytes(const RenderCapacity& capacity);
 
   // Allocates the arena. pool may be null (single-threaded); kernels null = best for this CPU.
   Status init(const RenderCapacity& capacity, platform::ThreadPool* pool, const simd::KernelTable* kernels = nullptr);
