@@ -11,8 +11,9 @@
 //   C2 = 0.03², each channel filtered on its own with zero padding ('same' size, as F.conv2d with
 //   padding 5 and groups = 3); the result is the mean of the SSIM map over channels and pixels.
 //   Zero padding darkens the local means within 5 px of the border; that is part of the convention.
-// Both compute in double. W or H below 1 (or a null pointer) give NaN. SSIM allocates
-// 5·H·W doubles of scratch per call; neither function is meant for the training inner loop.
+// Both compute in double; SSIM is the training loss's SSIM term (gs/simd/loss.h), so evaluation and
+// training measure the same thing. W or H below 1 (or a null pointer) give NaN. SSIM allocates
+// copies and scratch per call; neither function is meant for the training inner loop.
 #pragma once
 
 #include <cstdint>
