@@ -13,30 +13,11 @@
 #include <vector>
 
 #include "gs/status.h"
+#include "support/temp_dir.h"
 
 namespace gs::io::test {
 
-// mkdtemp folder under /tmp, removed with its contents on destruction.
-class TempDir {
- public:
-  TempDir() {
-    char pattern[] = "/tmp/gs_io_test_XXXXXX";
-    const char* p = mkdtemp(pattern);
-    REQUIRE(p != nullptr);
-    path_ = p;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const std::string& path() const { return path_; }
-  std::string operator/(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
+using gs::test::TempDir;
 
 inline void write_bytes(const std::string& path, const void* data, size_t size) {
   std::filesystem::create_directories(std::filesystem::path(path).parent_path());

@@ -22,6 +22,7 @@
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
+#include "support/temp_dir.h"
 
 namespace gs::metrics {
 namespace {
@@ -34,23 +35,7 @@ bool have_lpips_data() {
   return false;
 }
 
-class TempDir {
- public:
-  TempDir() {
-    char pattern[] = "/tmp/gs_metrics_test_XXXXXX";
-    const char* p = mkdtemp(pattern);
-    REQUIRE(p != nullptr);
-    path_ = p;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
+using gs::test::TempDir;
 
 void write_floats(const std::string& path, const std::vector<float>& v) {
   std::ofstream f(path, std::ios::binary);

@@ -23,6 +23,7 @@
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
 #include "support/alloc_counter.h"
+#include "support/temp_dir.h"
 
 namespace fs = std::filesystem;
 using gs::platform::ThreadPool;
@@ -55,29 +56,7 @@ struct Coverage {
   }
 };
 
-// A fresh folder under $TMPDIR (or /tmp) removed at the end of the test; tests never write into the
-// source tree, which is the working directory under ctest.
-class TempDir {
- public:
-  TempDir() {
-    const char* base = std::getenv("TMPDIR");
-    std::string pattern = std::string(base && *base ? base : "/tmp") + "/gs_platform_XXXXXX";
-    std::vector<char> buf(pattern.begin(), pattern.end());
-    buf.push_back('\0');
-    REQUIRE(::mkdtemp(buf.data()) != nullptr);
-    path_ = buf.data();
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::permissions(path_, fs::perms::owner_all, fs::perm_options::add, ec);
-    fs::remove_all(path_, ec);
-  }
-  const std::string& path() const { return path_; }
-  std::string operator/(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
+using gs::test::TempDir;
 
 // Names in dir that look like write_file_atomic's temp files for `name`.
 std::vector<std::string> temp_files_for(const std::string& dir, const std::string& name) {
