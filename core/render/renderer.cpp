@@ -42,6 +42,38 @@ class Carver {
   uint64_t offset_ = 0;
 };
 
+// Sorts one tile's keys ((depth bits << 32) | id) ascending. Keys arrive in increasing id order
+// (emitted Gaussian by Gaussian), so a stable LSD radix sort on the 32 depth bits yields exactly
+// the (depth, id) order; passes whose byte is the same for every key are skipped. Small tiles use
+// insertion sort. tmp: scratch of n keys.
+void sort_tile_keys(uint64_t* keys, uint64_t* tmp, uint32_t n) {
+  if (n <= 32) {
+    for (uint32_t i = 1; i < n; ++i) {
+      const uint64_t k = keys[i];
+      uint32_t j = i;
+      for (; j > 0 && keys[j - 1] > k; --j) keys[j] = keys[j - 1];
+      keys[j] = k;
+    }
+    return;
+  }
+  uint64_t* src = keys;
+  uint64_t* dst = tmp;
+  for (int shift = 32; shift < 64; shift += 8) {
+    uint32_t count[256] = {};
+    for (uint32_t i = 0; i < n; ++i) ++count[(src[i] >> shift) & 0xFF];
+    if (count[(src[0] >> shift) & 0xFF] == n) continue;  // one bucket: this pass would not move anything
+    uint32_t offset = 0;
+    for (uint32_t& c : count) {
+      const uint32_t c0 = c;
+      c = offset;
+      offset += c0;
+    }
+    for (uint32_t i = 0; i < n; ++i) dst[count[(src[i] >> shift) & 0xFF]++] = src[i];
+    std::swap(src, dst);
+  }
+  if (src != keys) std::memcpy(keys, src, sizeof(uint64_t) * n);
+}
+
 template <class F>
 void run_parallel(platform::ThreadPool* pool, size_t n, size_t grain, F& f) {
   if (n == 0) return;
@@ -60,7 +92,8 @@ struct Renderer::Impl {
   uint8_t* arena = nullptr;
   size_t arena_bytes = 0;
   // per Gaussian
-  float *means2d, *conics, *depths, *colors, *support;  // support: [N, 3] (splat_support)
+  float *means2d, *conics, *depths, *colors;
+  float* records;  // [N, kSplatStride]: each visible Gaussian's splat record, packed once per frame
   int32_t *radii, *rects;
   float *acc_means2d, *acc_conics, *acc_opacities, *acc_colors;
   float *scratch_v_means, *scratch_v_log_scales, *scratch_v_quats;
@@ -69,6 +102,7 @@ struct Renderer::Impl {
   uint32_t *tile_offsets, *tile_cursor;  // [tiles + 1]
   // per intersection
   uint64_t* keys;  // (depth bits << 32) | gaussian id, sorted within each tile
+  uint64_t* keys_tmp;  // radix-sort scratch, same layout as keys
   float *splats, *v_splats;
   // per pixel
   float* final_T;
@@ -91,7 +125,7 @@ struct Renderer::Impl {
     conics = c.take<float>(G * 3);
     depths = c.take<float>(G);
     colors = c.take<float>(G * 3);
-    support = c.take<float>(G * 3);
+    records = c.take<float>(G * simd::kSplatStride);
     radii = c.take<int32_t>(G);
     rects = c.take<int32_t>(G * 4);
     acc_means2d = c.take<float>(G * 2);
@@ -105,6 +139,7 @@ struct Renderer::Impl {
     tile_offsets = c.take<uint32_t>(tiles_max + 1);
     tile_cursor = c.take<uint32_t>(tiles_max + 1);
     keys = c.take<uint64_t>(I);
+    keys_tmp = c.take<uint64_t>(I);
     splats = c.take<float>(I * simd::kSplatStride);
     v_splats = c.take<float>(I * simd::kSplatStride);
     final_T = c.take<float>(P);
@@ -260,20 +295,33 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
 
   // 1. Project (and evaluate SH) in parallel chunks.
   const size_t n = params.count;
+  const float* colors = params.sh ? m.colors : params.colors;
   auto project = [&](size_t b, size_t e, int) {
     m.kernels->project_fwd(&pp, e - b, params.means + 3 * b, params.log_scales + 3 * b, params.quats + 4 * b,
                            m.means2d + 2 * b, m.conics + 3 * b, m.depths + b, m.radii + b);
-    for (size_t i = b; i < e; ++i) {
-      if (m.radii[i] == 0) continue;
-      simd::tile_rect(&pp, m.means2d + 2 * i, m.radii[i], m.rects + 4 * i);
-      simd::splat_support(m.conics + 3 * i, params.opacities[i], m.support + 3 * i);
-    }
     if (params.sh) simd::sh_fwd_ref<float>(e - b, params.sh_degree, params.means + 3 * b,
                                            params.sh + (b * (params.sh_degree + 1) * (params.sh_degree + 1)) * 3,
                                            m.campos, m.colors + 3 * b);
+    // Pack each visible Gaussian's record here, in order, so that binning copies one contiguous
+    // record per intersection instead of gathering six arrays at random.
+    for (size_t i = b; i < e; ++i) {
+      if (m.radii[i] == 0) continue;
+      simd::tile_rect(&pp, m.means2d + 2 * i, m.radii[i], m.rects + 4 * i);
+      float* s = m.records + i * simd::kSplatStride;
+      s[simd::kSplatMx] = m.means2d[2 * i];
+      s[simd::kSplatMy] = m.means2d[2 * i + 1];
+      s[simd::kSplatA] = m.conics[3 * i];
+      s[simd::kSplatB] = m.conics[3 * i + 1];
+      s[simd::kSplatC] = m.conics[3 * i + 2];
+      s[simd::kSplatOpacity] = params.opacities[i];
+      s[simd::kSplatR] = colors[3 * i];
+      s[simd::kSplatG] = colors[3 * i + 1];
+      s[simd::kSplatBlue] = colors[3 * i + 2];
+      s[simd::kSplatDepth] = m.depths[i];
+      simd::splat_support(m.conics + 3 * i, params.opacities[i], s + simd::kSplatTwoTau);
+    }
   };
   run_parallel(m.pool, n, kProjectGrain, project);
-  const float* colors = params.sh ? m.colors : params.colors;
 
   // 2. Bin: count intersections per tile, scan, emit keys.
   std::fill(m.tile_offsets, m.tile_offsets + m.tiles + 1, 0u);
@@ -305,29 +353,15 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
   }
   m.num_isects = size_t(total);
 
-  // 3. Per tile: sort by (depth, id), pack records, blend.
+  // 3. Per tile: sort by (depth, id), copy the records in that order, blend.
   auto raster = [&](size_t b, size_t e, int) {
     for (size_t tile = b; tile < e; ++tile) {
       uint32_t begin, end;
       m.tile_range(int(tile), &begin, &end);
-      std::sort(m.keys + begin, m.keys + end);
-      for (uint32_t k = begin; k < end; ++k) {
-        const uint32_t g = uint32_t(m.keys[k]);
-        float* s = m.splats + size_t(k) * simd::kSplatStride;
-        s[simd::kSplatMx] = m.means2d[2 * g];
-        s[simd::kSplatMy] = m.means2d[2 * g + 1];
-        s[simd::kSplatA] = m.conics[3 * g];
-        s[simd::kSplatB] = m.conics[3 * g + 1];
-        s[simd::kSplatC] = m.conics[3 * g + 2];
-        s[simd::kSplatOpacity] = params.opacities[g];
-        s[simd::kSplatR] = colors[3 * g];
-        s[simd::kSplatG] = colors[3 * g + 1];
-        s[simd::kSplatBlue] = colors[3 * g + 2];
-        s[simd::kSplatDepth] = m.depths[g];
-        s[simd::kSplatTwoTau] = m.support[3 * g];
-        s[simd::kSplatExtX] = m.support[3 * g + 1];
-        s[simd::kSplatExtY] = m.support[3 * g + 2];
-      }
+      sort_tile_keys(m.keys + begin, m.keys_tmp + begin, end - begin);
+      for (uint32_t k = begin; k < end; ++k)
+        std::memcpy(m.splats + size_t(k) * simd::kSplatStride, m.records + size_t(uint32_t(m.keys[k])) * simd::kSplatStride,
+                    sizeof(float) * simd::kSplatStride);
       const int tx = int(tile) % pp.tiles_x, ty = int(tile) / pp.tiles_x;
       m.kernels->raster_fwd_tile(&m.rp, tx, ty, m.splats + size_t(begin) * simd::kSplatStride,
                                  int32_t(end - begin), out_rgb, m.final_T, m.last, options.depth ? out_depth : nullptr);

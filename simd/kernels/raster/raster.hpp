@@ -252,9 +252,9 @@ struct RasterKernels {
           const B alpha = xsimd::select(clamped, B(kAlphaMax), raw);
           const M use = (power <= B(0.0f)) & (alpha >= B(kAlphaMin)) & active;
           if (!xsimd::any(use)) continue;
-          const B one_minus = B(1.0f) - alpha;
+          const B inv_one_minus = B(1.0f) / (B(1.0f) - alpha);  // one division serves both uses below
           const B t_old = B::load_aligned(T + o);
-          const B t = xsimd::select(use, t_old / one_minus, t_old);
+          const B t = xsimd::select(use, t_old * inv_one_minus, t_old);
           t.store_aligned(T + o);
           const B pvr = B::load_aligned(vr + o), pvg = B::load_aligned(vg + o), pvb = B::load_aligned(vb + o);
           const B w = xsimd::select(use, alpha * t, B(0.0f));
@@ -267,7 +267,7 @@ struct RasterKernels {
           behind.store_aligned(behind_v + o);
           xsimd::select(use, alpha, na).store_aligned(next_alpha + o);
           xsimd::select(use, cv, B::load_aligned(next_cv + o)).store_aligned(next_cv + o);
-          const B v_alpha = (cv - behind) * t - B::load_aligned(T_fin + o) / one_minus * B::load_aligned(v_bg + o);
+          const B v_alpha = (cv - behind) * t - B::load_aligned(T_fin + o) * inv_one_minus * B::load_aligned(v_bg + o);
           const B v_op = xsimd::select(use & !clamped, G * v_alpha, B(0.0f));
           acc_op += v_op;
           const B v_power = op * v_op;
