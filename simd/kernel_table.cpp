@@ -7,6 +7,7 @@
 #include <xsimd/xsimd.hpp>
 
 #include "gs/simd/loss.h"
+#include "gs/simd/mlp.h"
 #include "gs/simd/ref.h"
 
 namespace gs::simd {
@@ -31,7 +32,8 @@ GS_DECLARE_VARIANT(neon)
 const KernelTable& ref_kernel_table() {
   static const KernelTable table = {
       "ref", 1, &project_fwd_ref<float>, &project_bwd_ref<float>, &raster_fwd_tile_ref<float>,
-      &raster_bwd_tile_ref<float>, &loss_fwd_ref<float>, &loss_bwd_ref<float>,
+      &raster_bwd_tile_ref<float>, &loss_fwd_ref<float>, &loss_bwd_ref<float>, &mlp_fwd_ref<float>,
+      &mlp_bwd_ref<float>, &adam_step_ref<float>,
   };
   return table;
 }

@@ -9,6 +9,7 @@
 #include <cstdint>
 
 #include "gs/simd/loss.h"
+#include "gs/simd/mlp.h"
 #include "gs/simd/splat.h"
 
 namespace gs::simd {
@@ -28,6 +29,12 @@ using LossFwdFn = void (*)(const LossParams*, int32_t width, int32_t height, con
                            float* scratch, double* out_l1, double* out_ssim);
 using LossBwdFn = void (*)(const LossParams*, int32_t width, int32_t height, const float* image, const float* target,
                            double v_loss, float* scratch, float* v_image, double* out_l1, double* out_ssim);
+using MlpFwdFn = void (*)(const MlpShape*, int32_t batch, const float* x, const float* W1, const float* b1,
+                          const float* W2, const float* b2, float* hidden, float* y);
+using MlpBwdFn = void (*)(const MlpShape*, int32_t batch, const float* x, const float* W1, const float* b1,
+                          const float* W2, const float* b2, const float* hidden, const float* y, const float* v_y,
+                          float* v_x, float* v_W1, float* v_b1, float* v_W2, float* v_b2);
+using AdamStepFn = void (*)(const AdamParams*, size_t n, float* param, const float* grad, float* m, float* v);
 
 struct KernelTable {
   const char* isa;  // "ref", "sse2", "avx2", "avx512", "neon64", "neon"
@@ -38,6 +45,9 @@ struct KernelTable {
   RasterBwdTileFn raster_bwd_tile;
   LossFwdFn loss_fwd;  // photometric loss over a whole [H, W, 3] image (loss.h)
   LossBwdFn loss_bwd;
+  MlpFwdFn mlp_fwd;  // 2-layer decoder MLP over a batch of rows (mlp.h)
+  MlpBwdFn mlp_bwd;
+  AdamStepFn adam_step;  // one Adam update of n parameters (mlp.h)
 };
 
 // The reference table (always available).
