@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "gs/camera.h"
+#include "gs/platform/file.h"
 #include "gs/render.h"
 #include "gs/simd/kernel_table.h"
 
@@ -195,6 +196,18 @@ inline std::string count_label(size_t n) {
   else if (n >= 1000 && n % 1000 == 0) std::snprintf(buf, sizeof(buf), "%zuk", n / 1000);
   else std::snprintf(buf, sizeof(buf), "%zu", n);
   return buf;
+}
+
+// Writes a benchmark's JSON (or any text output) atomically through the platform layer and says
+// where it went; returns false (after printing why) if it could not.
+inline bool write_output(const std::string& path, const std::string& text, const char* program) {
+  const Status st = platform::write_file_atomic(path, text);
+  if (!st.ok()) {
+    std::fprintf(stderr, "%s: cannot write %s: %s\n", program, path.c_str(), st.to_string().c_str());
+    return false;
+  }
+  std::printf("Wrote %s\n", path.c_str());
+  return true;
 }
 
 }  // namespace gs::bench

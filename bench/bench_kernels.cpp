@@ -262,13 +262,7 @@ int run(int argc, char** argv) {
       j["project"].push_back({{"isa", r.isa}, {"count", r.n}, {"fwd_ms", tj(r.fwd)}, {"bwd_ms", tj(r.bwd)},
                               {"fwd_gaussians_per_s_at_min", double(r.n) / (r.fwd.min_ms * 1e-3)},
                               {"bwd_gaussians_per_s_at_min", double(r.n) / (r.bwd.min_ms * 1e-3)}});
-    std::ofstream f(json_path);
-    if (!f) {
-      std::fprintf(stderr, "bench_kernels: cannot write %s\n", json_path.c_str());
-      return 1;
-    }
-    f << j.dump(2) << "\n";
-    std::printf("Wrote %s\n", json_path.c_str());
+    if (!write_output(json_path, j.dump(2) + "\n", "bench_kernels")) return 1;
   }
   return 0;
 }

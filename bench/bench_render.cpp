@@ -642,10 +642,7 @@ int run(int argc, char** argv) {
     }
     j["results"] = res;
     j["skipped"] = skipped;
-    std::ofstream f(json_path);
-    if (!f) die("cannot write " + json_path);
-    f << j.dump(2) << "\n";
-    std::printf("Wrote %s\n", json_path.c_str());
+    if (!write_output(json_path, j.dump(2) + "\n", "bench_render")) return 1;
   }
   return 0;
 }
