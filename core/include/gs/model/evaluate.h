@@ -1,0 +1,50 @@
+// SPDX-License-Identifier: MIT
+// Evaluation of a trained model on held-out views (ALGORITHM.md Part A item 10): render each view,
+// quantise to 8 bits, then PSNR, SSIM and (when weights are given) LPIPS-Alex against the 8-bit
+// ground truth; optional PNG output; results in the 3DGS results.json / per_view.json schema.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "gs/io/colmap.h"
+#include "gs/model/hybrid_model.h"
+#include "gs/status.h"
+
+namespace gs::metrics { class LpipsAlex; }
+namespace gs::platform { class ThreadPool; }
+
+namespace gs::model {
+
+struct ViewMetrics {
+  std::string name;
+  double psnr = 0, ssim = 0;
+  double lpips = -1;       // < 0: not computed (no weights)
+  double render_ms = 0;    // model decode + render, one view
+  size_t gaussians = 0;    // kept neural Gaussians in this view
+};
+
+struct EvalResult {
+  std::vector<ViewMetrics> views;
+  double psnr = 0, ssim = 0, lpips = -1;  // means over views (lpips < 0: not computed)
+  double render_ms_median = 0;
+};
+
+struct EvalOptions {
+  const metrics::LpipsAlex* lpips = nullptr;  // null: skip LPIPS
+  std::string render_dir;                     // non-empty: write <dir>/<view stem>.png (atomic)
+  bool psnr_only = false;                     // quick evaluation during training (no SSIM / LPIPS / PNG)
+};
+
+Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<const io::DatasetView*>& views,
+                                    const EvalOptions& options, platform::ThreadPool* pool);
+
+// 3DGS schema: results.json = {"<method>": {"SSIM": s, "PSNR": p, "LPIPS": l}} and
+// per_view.json = {"<method>": {"SSIM": {name: s}, "PSNR": {...}, "LPIPS": {...}}}; LPIPS keys are
+// omitted when it was not computed. extra_json (an object's members, may be empty) is merged into
+// results.json's method object (timings, model size, LPIPS backbone label).
+std::string results_json(const EvalResult& r, const std::string& method, const std::string& extra_json_members);
+std::string per_view_json(const EvalResult& r, const std::string& method);
+
+}  // namespace gs::model

@@ -1,0 +1,100 @@
+// SPDX-License-Identifier: MIT
+// The hybrid anchor model (ALGORITHM.md Part A items 2-4): Scaffold-style anchors with learned
+// features, k offsets and 6 log-scales, optionally fused with image-based features, and the tiny
+// MLPs that decode neural Gaussians per view. Also its versioned binary file format.
+//
+// Memory: every per-anchor array is allocated once with capacity() rows (the hard anchor budget),
+// so growing anchors during training never reallocates; rows [0, anchor_count) are live.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "gs/simd/mlp.h"
+#include "gs/status.h"
+
+namespace gs::model {
+
+// Image-based feature mode: kNone is plain Scaffold-GS (the ablation baseline), kPaper the default.
+enum class ImageFeatureMode : int32_t { kNone = 0, kPaper = 1 };
+const char* image_feature_mode_name(ImageFeatureMode mode);
+Expected<ImageFeatureMode> parse_image_feature_mode(const std::string& text);
+
+// Raw image-feature vector per anchor (input of the learned MLP F): bilinear colour at pyramid
+// levels 0, 1, 2 (9 values in [0, 1]), the unit ray camera->anchor in the chosen camera's frame minus
+// the optical axis (3), and a valid flag (1; all 13 values are 0 when no training view sees it).
+constexpr int kImageRawDim = 13;
+constexpr int kImagePyramidLevels = 3;
+
+struct ModelConfig {
+  int k = 10;                     // neural Gaussians (offsets) per anchor
+  int feature_dim = 32;           // learned anchor feature f
+  int hidden = 32;                // hidden width of the decoder MLPs
+  ImageFeatureMode image_features = ImageFeatureMode::kPaper;
+  int image_feature_dim = 16;     // g = F(raw), concatenated with f
+  int image_feature_hidden = 32;  // hidden width of F
+  size_t max_anchors = 50000;     // hard budget on anchors (initial + grown)
+  size_t max_gaussians = 500000;  // hard budget on neural Gaussians per view (anchors x k)
+  float voxel_size = 0.0f;        // eps, world units; 0 = automatic from the point spacing
+
+  // Decoder input width: [f ; g ; view direction (3) ; distance (1)].
+  int decoder_input_dim() const {
+    return feature_dim + (image_features == ImageFeatureMode::kPaper ? image_feature_dim : 0) + 4;
+  }
+  // Rows allocated per anchor array: min(max_anchors, max_gaussians / k).
+  size_t anchor_capacity() const;
+  Status validate() const;
+};
+
+// One 2-layer MLP with its parameters packed as [W1 (H x I) | b1 (H) | W2 (O x H) | b2 (O)].
+struct Mlp {
+  simd::MlpShape shape{1, 1, 1, simd::MlpAct::kNone};
+  std::vector<float> params;
+  static size_t param_count(const simd::MlpShape& s) {
+    return size_t(s.hidden) * size_t(s.in) + size_t(s.hidden) + size_t(s.out) * size_t(s.hidden) + size_t(s.out);
+  }
+  // Offsets of the four blocks inside a packed parameter array.
+  static size_t off_b1(const simd::MlpShape& s) { return size_t(s.hidden) * size_t(s.in); }
+  static size_t off_W2(const simd::MlpShape& s) { return off_b1(s) + size_t(s.hidden); }
+  static size_t off_b2(const simd::MlpShape& s) { return off_W2(s) + size_t(s.out) * size_t(s.hidden); }
+};
+
+// The four MLPs in a fixed order (used for file layout and optimiser groups).
+enum MlpId : int { kMlpOpacity = 0, kMlpCov = 1, kMlpColor = 2, kMlpImage = 3, kMlpCount = 4 };
+
+struct HybridModel {
+  ModelConfig config;
+  size_t anchor_count = 0;   // live rows M
+  float voxel_size = 0.0f;   // eps actually used
+  float scene_extent = 1.0f; // 1.1 x max distance of a training camera centre from their mean
+  std::vector<float> positions;   // [cap, 3] fixed
+  std::vector<float> offsets;     // [cap, k, 3]
+  std::vector<float> log_scales;  // [cap, 6]: [0:3] offset scale, [3:6] Gaussian base scale
+  std::vector<float> features;    // [cap, F]
+  std::vector<float> image_raw;   // [cap, kImageRawDim] (kPaper), refreshed from the training views
+  Mlp mlps[kMlpCount];            // opacity (tanh, k), cov (none, 7k), colour (sigmoid, 3k), image F
+
+  size_t capacity() const { return positions.size() / 3; }
+  // Bytes of the live model on disk (header + live rows + MLPs).
+  uint64_t file_bytes() const;
+};
+
+// Builds the initial model from SfM points [n, 3]: anchors (voxelised, 3-NN log-scales, zero offsets
+// and features) with the automatic voxel size aiming at half the anchor budget (room to grow), and
+// MLPs with PyTorch-default uniform init from a seeded generator. scene_extent as documented above.
+// Errors: no points, non-finite points, invalid config.
+Expected<HybridModel> create_model(const ModelConfig& config, const float* xyz, size_t n, float scene_extent,
+                                   uint64_t seed);
+
+// Model file: magic "HBGSMODL", format version, config, live rows, MLPs; little-endian; written
+// atomically. load_model refuses other versions, truncated or inconsistent files with a message.
+constexpr uint32_t kModelFileVersion = 1;
+std::vector<uint8_t> serialize_model(const HybridModel& model);
+Expected<HybridModel> deserialize_model(const uint8_t* data, size_t size, const std::string& source,
+                                        size_t* consumed = nullptr);
+Status save_model(const HybridModel& model, const std::string& path);
+Expected<HybridModel> load_model(const std::string& path);
+
+}  // namespace gs::model

@@ -1,0 +1,195 @@
+// SPDX-License-Identifier: MIT
+// One training step's computation graph, written once and templated on the scalar type and on a
+// Backend that supplies the MLP, rendering and loss kernels:
+//   visible anchors -> g = F(raw image features) -> X = [f ; g ; dir ; dist] -> three decoder MLPs
+//   -> kept neural Gaussians -> render -> (1 - l) L1 + l (1 - SSIM) + volume -> all gradients.
+// The trainer runs it in float with the SIMD kernels and gs::Renderer; the finite-difference tests
+// run the same code in double with the scalar references and gs::ref (tests/model).
+//
+// Backend<T> must provide:
+//   void mlp_fwd(const simd::MlpShape&, int32_t batch, const T* x, const T* params, T* hidden, T* y);
+//   void mlp_bwd(const simd::MlpShape&, int32_t batch, const T* x, const T* params, const T* hidden,
+//                const T* y, const T* v_y, T* v_x /*overwritten or null*/, T* v_params /*+=*/);
+//   Status render_fwd(const Camera&, const NeuralGaussians<T>&, T* rgb);
+//   Status render_bwd(const T* v_rgb, T* v_means, T* v_log_scales, T* v_quats, T* v_opacities,
+//                     T* v_colors, T* v_means2d);
+//   void loss_bwd(int W, int H, const T* image, const T* target, T* v_image, double* l1, double* ssim);
+// Memory: StepWorkspace is sized once by reserve(); the step itself allocates nothing.
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "gs/camera.h"
+#include "gs/model/decode.h"
+#include "gs/model/hybrid_model.h"
+#include "gs/simd/loss.h"
+#include "gs/status.h"
+
+namespace gs::model {
+
+template <class T>
+struct ModelParamsT {
+  AnchorParams<T> anchors;
+  const T* image_raw = nullptr;  // [M, kImageRawDim] when image_feature_dim > 0
+  int image_feature_dim = 0;     // G (0: mode none)
+  const T* mlp[kMlpCount] = {nullptr, nullptr, nullptr, nullptr};
+  simd::MlpShape shapes[kMlpCount];
+};
+
+// Gradient destinations, ACCUMULATED (+=); the caller zeroes them. Any may be null except the MLPs.
+template <class T>
+struct ModelGradsT {
+  T* offsets = nullptr;     // [M, k, 3]
+  T* log_scales = nullptr;  // [M, 6]
+  T* features = nullptr;    // [M, F]
+  T* mlp[kMlpCount] = {nullptr, nullptr, nullptr, nullptr};
+};
+
+struct StepConfig {
+  double ssim_lambda = simd::kLossLambda;  // (must match the backend's loss parameters)
+  double volume_weight = 0.01;             // x mean over kept Gaussians of s_x s_y s_z
+};
+
+struct StepResult {
+  double loss = 0, l1 = 0, ssim = 0, volume = 0;
+  size_t visible_anchors = 0, gaussians = 0;
+};
+
+template <class T>
+struct StepWorkspace {
+  std::vector<uint32_t> rows;                         // [cap] visible anchor rows
+  std::vector<T> raw, img_hidden, g, v_g;             // [cap, R] [cap, Hi] [cap, G] [cap, G]
+  std::vector<T> X, v_X, v_x_tmp;                     // [cap, D]
+  std::vector<T> hidden[3], y[3], v_y[3];             // decoder MLPs: opacity, cov, colour
+  std::vector<T> means, log_scales, quats, opacities, colors;            // [cap k, ...]
+  std::vector<T> v_means, v_log_scales, v_quats, v_opacities, v_colors, v_means2d, v_ls_volume;
+  std::vector<uint32_t> source;                       // [cap k]
+  std::vector<T> rgb, v_rgb;                          // [H, W, 3]
+  NeuralGaussians<T> ng;
+  size_t capacity = 0;
+
+  void reserve(size_t cap, int k, const simd::MlpShape shapes[kMlpCount], int G, int width, int height) {
+    capacity = cap;
+    const size_t D = size_t(shapes[kMlpOpacity].in), N = cap * size_t(k);
+    rows.assign(cap, 0);
+    if (G > 0) {
+      raw.assign(cap * size_t(kImageRawDim), T(0));
+      img_hidden.assign(cap * size_t(shapes[kMlpImage].hidden), T(0));
+      g.assign(cap * size_t(G), T(0));
+      v_g.assign(cap * size_t(G), T(0));
+    }
+    X.assign(cap * D, T(0));
+    v_X.assign(cap * D, T(0));
+    v_x_tmp.assign(cap * D, T(0));
+    for (int m = 0; m < 3; ++m) {
+      hidden[m].assign(cap * size_t(shapes[m].hidden), T(0));
+      y[m].assign(cap * size_t(shapes[m].out), T(0));
+      v_y[m].assign(cap * size_t(shapes[m].out), T(0));
+    }
+    for (auto* v : {&means, &log_scales, &colors, &v_means, &v_log_scales, &v_colors, &v_ls_volume}) v->assign(N * 3, T(0));
+    for (auto* v : {&quats, &v_quats}) v->assign(N * 4, T(0));
+    for (auto* v : {&opacities, &v_opacities}) v->assign(N, T(0));
+    v_means2d.assign(N * 2, T(0));
+    source.assign(N, 0);
+    rgb.assign(size_t(width) * size_t(height) * 3, T(0));
+    v_rgb.assign(rgb.size(), T(0));
+    ng.means = means.data();
+    ng.log_scales = log_scales.data();
+    ng.quats = quats.data();
+    ng.opacities = opacities.data();
+    ng.colors = colors.data();
+    ng.source = source.data();
+  }
+};
+
+// Forward up to the kept neural Gaussians of one view (ws.ng); returns N and sets *visible = V.
+template <class T, class Backend>
+size_t decode_view(Backend& be, const ModelParamsT<T>& p, const Camera& cam, StepWorkspace<T>& ws, size_t* visible) {
+  const AnchorParams<T>& a = p.anchors;
+  const int G = p.image_feature_dim;
+  const simd::MlpShape* sh = p.shapes;
+  const size_t V = select_visible_anchors(cam, a, ws.rows.data());
+  const uint32_t* rows = ws.rows.data();
+  if (G > 0) {
+    for (size_t v = 0; v < V; ++v)
+      std::copy(p.image_raw + size_t(rows[v]) * kImageRawDim, p.image_raw + (size_t(rows[v]) + 1) * kImageRawDim,
+                ws.raw.data() + v * kImageRawDim);
+    be.mlp_fwd(sh[kMlpImage], int32_t(V), ws.raw.data(), p.mlp[kMlpImage], ws.img_hidden.data(), ws.g.data());
+  }
+  double centre[3];
+  camera_centre(cam.pose, centre);
+  build_decoder_input(a, rows, V, G > 0 ? ws.g.data() : static_cast<const T*>(nullptr), G, centre, ws.X.data());
+  for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden[m].data(), ws.y[m].data());
+  *visible = V;
+  return decode_fwd(a, rows, V, ws.y[kMlpOpacity].data(), ws.y[kMlpCov].data(), ws.y[kMlpColor].data(), &ws.ng);
+}
+
+// Runs the graph forward and, if grads != nullptr, backward. target: [H, W, 3] in [0, 1].
+template <class T, class Backend>
+Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera& cam, const T* target,
+                             const StepConfig& cfg, StepWorkspace<T>& ws, ModelGradsT<T>* grads, StepResult* out) {
+  const AnchorParams<T>& a = p.anchors;
+  if (a.count > ws.capacity) return capacity_exceeded("training step: more anchors than the workspace plan");
+  const int W = cam.intr.width, H = cam.intr.height;
+  if (size_t(W) * size_t(H) * 3 > ws.rgb.size()) return capacity_exceeded("training step: image larger than planned");
+  const int G = p.image_feature_dim, F = a.feature_dim, k = a.k;
+  const simd::MlpShape* sh = p.shapes;
+  const size_t D = size_t(sh[kMlpOpacity].in);
+
+  size_t V = 0;
+  const size_t N = decode_view(be, p, cam, ws, &V);
+  const uint32_t* rows = ws.rows.data();
+  GS_RETURN_IF_ERROR(be.render_fwd(cam, ws.ng, ws.rgb.data()));
+  double l1 = 0, ssim = 0;
+  be.loss_bwd(W, H, ws.rgb.data(), target, ws.v_rgb.data(), &l1, &ssim);
+  out->l1 = l1;
+  out->ssim = ssim;
+  out->visible_anchors = V;
+  out->gaussians = N;
+  std::fill(ws.v_ls_volume.begin(), ws.v_ls_volume.begin() + std::ptrdiff_t(3 * N), T(0));
+  out->volume = volume_fwd_bwd(N, ws.log_scales.data(), cfg.volume_weight, ws.v_ls_volume.data());
+  out->loss = (1 - cfg.ssim_lambda) * l1 + cfg.ssim_lambda * (1 - ssim) + out->volume;
+  if (!grads) return Status::Ok();
+
+  // Backward through the renderer (the volume term adds to its log-scale gradient).
+  GS_RETURN_IF_ERROR(be.render_bwd(ws.v_rgb.data(), ws.v_means.data(), ws.v_log_scales.data(), ws.v_quats.data(),
+                                   ws.v_opacities.data(), ws.v_colors.data(), ws.v_means2d.data()));
+  for (size_t i = 0; i < 3 * N; ++i) ws.v_log_scales[i] += ws.v_ls_volume[i];
+
+  // Decode backward: MLP output gradients and the anchor offset / log-scale gradients.
+  const GaussianGradsT<T> gg{ws.v_means.data(), ws.v_log_scales.data(), ws.v_quats.data(), ws.v_opacities.data(),
+                             ws.v_colors.data()};
+  decode_bwd(a, rows, V, ws.y[kMlpCov].data(), ws.ng, gg, ws.v_y[kMlpOpacity].data(), ws.v_y[kMlpCov].data(),
+             ws.v_y[kMlpColor].data(), grads->offsets, grads->log_scales);
+
+  // Decoder MLPs: weight gradients accumulate; input gradients sum over the three.
+  for (int m = 0; m < 3; ++m) {
+    T* v_x = m == 0 ? ws.v_X.data() : ws.v_x_tmp.data();
+    be.mlp_bwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden[m].data(), ws.y[m].data(), ws.v_y[m].data(), v_x,
+               grads->mlp[m]);
+    if (m > 0)
+      for (size_t i = 0; i < V * D; ++i) ws.v_X[i] += ws.v_x_tmp[i];
+  }
+
+  // Anchor features and the image-feature MLP (the direction and distance inputs depend on the pose
+  // only, which this issue keeps fixed).
+  if (grads->features)
+    for (size_t v = 0; v < V; ++v) {
+      T* dst = grads->features + size_t(rows[v]) * size_t(F);
+      const T* src = ws.v_X.data() + v * D;
+      for (int c = 0; c < F; ++c) dst[c] += src[c];
+    }
+  if (G > 0) {
+    for (size_t v = 0; v < V; ++v)
+      std::copy(ws.v_X.data() + v * D + F, ws.v_X.data() + v * D + F + G, ws.v_g.data() + v * size_t(G));
+    be.mlp_bwd(sh[kMlpImage], int32_t(V), ws.raw.data(), p.mlp[kMlpImage], ws.img_hidden.data(), ws.g.data(),
+               ws.v_g.data(), static_cast<T*>(nullptr), grads->mlp[kMlpImage]);
+  }
+  (void)k;
+  return Status::Ok();
+}
+
+}  // namespace gs::model

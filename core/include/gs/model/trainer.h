@@ -1,0 +1,111 @@
+// SPDX-License-Identifier: MIT
+// Training loop of the hybrid anchor model (ALGORITHM.md Part A items 4, 6, 9; Part B 5-7): one
+// random training view per iteration (without replacement per epoch), the step graph in float with
+// the SIMD kernels, dense Adam per parameter group with the reference schedules, Scaffold-GS anchor
+// growing and pruning under the hard budgets, image features refreshed at a fixed interval, and a
+// complete, versioned checkpoint of the training state.
+//
+// Memory: create() plans and allocates everything (model arrays at budget capacity, optimiser
+// moments, renderer arena, workspace); step() allocates nothing (tests/model/test_trainer.cpp).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gs/io/colmap.h"
+#include "gs/model/hybrid_model.h"
+#include "gs/model/step_graph.h"
+#include "gs/status.h"
+
+namespace gs::platform { class ThreadPool; }
+namespace gs::simd { struct KernelTable; }
+
+namespace gs::model {
+
+struct TrainOptions {
+  int iterations = 30000;
+  int schedule_iterations = 30000;  // horizon of the exponential learning-rate schedules
+  uint64_t seed = 0;
+  StepConfig step;
+  // Learning rates (Part B section 6). Offsets are scaled by the scene extent.
+  double lr_offset_init = 0.01, lr_offset_final = 0.0001;
+  double lr_feature = 0.0075;
+  double lr_scaling = 0.007;
+  double lr_mlp_opacity_init = 0.002, lr_mlp_opacity_final = 2e-5;
+  double lr_mlp_cov_init = 0.004, lr_mlp_cov_final = 0.004;
+  double lr_mlp_color_init = 0.008, lr_mlp_color_final = 5e-5;
+  double lr_mlp_image_init = 0.004, lr_mlp_image_final = 4e-5;  // hbgs's F (no reference value)
+  double adam_eps = 1e-15;
+  // Anchor growing and pruning (Part B section 7).
+  int stat_start = 500, update_from = 1500, update_interval = 100, update_until = 15000;
+  double densify_grad_threshold = 0.0002, success_threshold = 0.8, min_opacity = 0.005;
+  int update_depth = 3, update_init_factor = 16, update_hierarchy_factor = 4;
+  // Image features are recomputed from the current poses every this many iterations (0: never).
+  int image_feature_refresh = 1000;
+};
+
+struct IterationStats {
+  int iteration = 0;       // 1-based number of the iteration just run
+  int view = 0;            // index into the training views
+  StepResult step;
+  double psnr = 0;         // of this iteration's render against its target (float, unclamped)
+  size_t anchors = 0;      // live anchors after the iteration
+  double seconds = 0;      // wall time of this iteration
+  bool adjusted = false;   // anchors were grown / pruned this iteration
+};
+
+class Trainer {
+ public:
+  // train_views: cameras and 8-bit images (not owned; must outlive the trainer). kernels null =
+  // best for this CPU; pool may be null. Errors: no views, images of the wrong size, a model whose
+  // capacity cannot hold its anchors, a renderer plan that cannot be allocated.
+  static Expected<std::unique_ptr<Trainer>> create(HybridModel model, const std::vector<const io::DatasetView*>& train_views,
+                                                   const TrainOptions& options, platform::ThreadPool* pool,
+                                                   const simd::KernelTable* kernels = nullptr);
+  ~Trainer();
+
+  // Runs one iteration. Fails only on a broken invariant (reported, not asserted).
+  Status step(IterationStats* stats);
+  int iteration() const;  // completed iterations
+  const HybridModel& model() const;
+  const TrainOptions& options() const;
+
+  // Checkpoint: magic "HBGSCKPT", version, the model, every Adam moment and step count, densification
+  // statistics, iteration, RNG and view-order state. Written atomically (temp file + rename).
+  Status save_checkpoint(const std::string& path) const;
+  // Restores a checkpoint written by save_checkpoint for the same training views (count checked).
+  Status load_checkpoint(const std::string& path);
+
+  // Bytes allocated at create() (model capacity, optimiser, workspace, renderer arena).
+  uint64_t planned_bytes() const;
+
+ private:
+  Trainer();
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Renders views of a trained model (no gradients): the step graph's forward in float. Allocates at
+// init() only.
+class ModelRenderer {
+ public:
+  ModelRenderer();
+  ~ModelRenderer();
+  // Plans for the model's capacity and images up to max_width x max_height.
+  Status init(const HybridModel& model, int max_width, int max_height, platform::ThreadPool* pool,
+              const simd::KernelTable* kernels = nullptr);
+  // rgb: [H, W, 3] floats (not clamped). gaussians: kept neural Gaussians of this view (optional).
+  Status render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians = nullptr);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// 1.1 x the largest distance of a camera centre from the mean centre (the offset LR scale).
+float cameras_extent(const std::vector<const Camera*>& cameras);
+
+}  // namespace gs::model

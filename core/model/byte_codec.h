@@ -1,0 +1,134 @@
+// SPDX-License-Identifier: MIT
+// Private to gs_model: bounds-checked little-endian reader and appending writer for the model and
+// checkpoint files (every read reports the file and byte offset where the data ran out).
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "../io/io_util.h"
+#include "gs/status.h"
+
+namespace gs::model::detail {
+
+class ByteWriter {
+ public:
+  std::vector<uint8_t> bytes;
+  void u32(uint32_t v) { io::detail::append_u32(bytes, v); }
+  void u64(uint64_t v) { io::detail::append_u64(bytes, v); }
+  void i32(int32_t v) { u32(uint32_t(v)); }
+  void f32(float v) { io::detail::append_f32(bytes, v); }
+  void f64(double v) { io::detail::append_f64(bytes, v); }
+  void raw(const void* p, size_t n) {
+    const uint8_t* b = static_cast<const uint8_t*>(p);
+    bytes.insert(bytes.end(), b, b + n);
+  }
+  void floats(const float* p, size_t n) {
+    for (size_t i = 0; i < n; ++i) f32(p[i]);
+  }
+  template <class T>
+  void pod_array(const std::vector<T>& v) {  // count + elements, little-endian per element
+    u64(v.size());
+    for (const T& x : v) io::detail::append_le(bytes, uint64_t(x), int(sizeof(T)));
+  }
+};
+
+class ByteReader {
+ public:
+  ByteReader(const uint8_t* data, size_t size, std::string source) : p_(data), n_(size), source_(std::move(source)) {}
+  size_t offset() const { return off_; }
+  bool need(size_t bytes, const char* what) {
+    if (!status_.ok()) return false;
+    if (bytes > n_ - off_) {
+      status_ = parse_error(source_ + ": truncated at byte " + std::to_string(off_) + " while reading " + what +
+                            " (needs " + std::to_string(bytes) + " more bytes, file has " +
+                            std::to_string(n_ - off_) + ")");
+      return false;
+    }
+    return true;
+  }
+  uint32_t u32(const char* what) { return need(4, what) ? uint32_t(take(4)) : 0; }
+  uint64_t u64(const char* what) { return need(8, what) ? take(8) : 0; }
+  int32_t i32(const char* what) { return int32_t(u32(what)); }
+  float f32(const char* what) {
+    const uint32_t b = u32(what);
+    float f;
+    std::memcpy(&f, &b, 4);
+    return f;
+  }
+  double f64(const char* what) {
+    const uint64_t b = u64(what);
+    double d;
+    std::memcpy(&d, &b, 8);
+    return d;
+  }
+  bool floats(float* dst, size_t count, const char* what) {
+    if (!status_.ok()) return false;
+    if (count > (n_ - off_) / 4) {  // also guards 4 * count against overflow
+      need(n_ - off_ + 1, what);
+      return false;
+    }
+    for (size_t i = 0; i < count; ++i) dst[i] = io::detail::load_f32(p_ + off_ + 4 * i);
+    off_ += 4 * count;
+    return true;
+  }
+  bool bytes(void* dst, size_t count, const char* what) {
+    if (!need(count, what)) return false;
+    std::memcpy(dst, p_ + off_, count);
+    off_ += count;
+    return true;
+  }
+  bool skip(size_t count) {
+    if (!need(count, "skipped bytes")) return false;
+    off_ += count;
+    return true;
+  }
+  template <class T>
+  bool pod_array(std::vector<T>* v, uint64_t max_count, const char* what) {
+    const uint64_t count = u64(what);
+    if (!status_.ok()) return false;
+    if (count > max_count || count > (n_ - off_) / sizeof(T)) return fail(std::string(what) + ": count " + std::to_string(count) + " is impossible");
+    v->resize(size_t(count));
+    for (auto& x : *v) x = T(take(int(sizeof(T))));
+    return true;
+  }
+  bool fail(const std::string& message) {
+    if (status_.ok()) status_ = parse_error(source_ + ": at byte " + std::to_string(off_) + ": " + message);
+    return false;
+  }
+  const Status& status() const { return status_; }
+
+ private:
+  uint64_t take(int bytes) {
+    const uint64_t v = io::detail::load_le(p_ + off_, bytes);
+    off_ += size_t(bytes);
+    return v;
+  }
+  const uint8_t* p_;
+  size_t n_, off_ = 0;
+  std::string source_;
+  Status status_;
+};
+
+// FNV-1a 64 over a byte range: detects corruption of model and checkpoint files.
+inline uint64_t fnv1a64(const uint8_t* p, size_t n) {
+  uint64_t h = 1469598103934665603ull;
+  for (size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 1099511628211ull;
+  return h;
+}
+
+// splitmix64: the project's portable seeded generator (identical on every platform).
+struct SplitMix64 {
+  uint64_t state = 0;
+  uint64_t next() {
+    uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  double uniform() { return double(next() >> 11) * (1.0 / 9007199254740992.0); }  // [0, 1)
+};
+
+}  // namespace gs::model::detail

@@ -1,0 +1,132 @@
+// SPDX-License-Identifier: MIT
+// Private to gs_model: the float Backend of the step graph (gs/model/step_graph.h) used by the
+// trainer and the model renderer: SIMD MLP kernels split over the thread pool in a fixed number of
+// row chunks (so results do not depend on the thread count), gs::Renderer and the SIMD loss.
+#pragma once
+
+#include <algorithm>
+#include <cstring>
+#include <vector>
+
+#include "gs/model/decode.h"
+#include "gs/model/hybrid_model.h"
+#include "gs/platform/thread_pool.h"
+#include "gs/render.h"
+#include "gs/simd/kernel_table.h"
+
+namespace gs::model::detail {
+
+class FloatBackend {
+ public:
+  static constexpr int kChunks = 8;        // fixed MLP row partition (thread-count independent)
+  static constexpr int kMinChunkRows = 64;
+
+  // max_mlp_params: the largest MLP's parameter count (per-chunk gradient buffers).
+  void init(Renderer* renderer, const simd::KernelTable* kernels, platform::ThreadPool* pool, size_t max_mlp_params,
+            int max_width) {
+    renderer_ = renderer;
+    kt_ = kernels;
+    pool_ = pool;
+    loss_params_ = simd::make_loss_params();
+    loss_scratch_.assign(simd::loss_scratch_floats(max_width, 1), 0.0f);
+    chunk_grads_.assign(size_t(kChunks) * max_mlp_params, 0.0f);
+    max_mlp_params_ = max_mlp_params;
+  }
+
+  void mlp_fwd(const simd::MlpShape& s, int32_t batch, const float* x, const float* p, float* hidden, float* y) {
+    const int chunks = chunk_count(batch);
+    auto body = [&](size_t b, size_t e, int) {
+      for (size_t c = b; c < e; ++c) {
+        int32_t r0, r1;
+        chunk_rows(batch, chunks, int(c), &r0, &r1);
+        if (r1 > r0)
+          kt_->mlp_fwd(&s, r1 - r0, x + size_t(r0) * size_t(s.in), p, p + Mlp::off_b1(s), p + Mlp::off_W2(s),
+                       p + Mlp::off_b2(s), hidden + size_t(r0) * size_t(s.hidden), y + size_t(r0) * size_t(s.out));
+      }
+    };
+    run(size_t(chunks), body);
+  }
+
+  void mlp_bwd(const simd::MlpShape& s, int32_t batch, const float* x, const float* p, const float* hidden,
+               const float* y, const float* v_y, float* v_x, float* v_p) {
+    const int chunks = chunk_count(batch);
+    const size_t np = Mlp::param_count(s);
+    auto body = [&](size_t b, size_t e, int) {
+      for (size_t c = b; c < e; ++c) {
+        int32_t r0, r1;
+        chunk_rows(batch, chunks, int(c), &r0, &r1);
+        float* g = chunk_grads_.data() + c * max_mlp_params_;
+        std::fill(g, g + np, 0.0f);
+        if (r1 <= r0) continue;
+        kt_->mlp_bwd(&s, r1 - r0, x + size_t(r0) * size_t(s.in), p, p + Mlp::off_b1(s), p + Mlp::off_W2(s),
+                     p + Mlp::off_b2(s), hidden + size_t(r0) * size_t(s.hidden), y + size_t(r0) * size_t(s.out),
+                     v_y + size_t(r0) * size_t(s.out), v_x ? v_x + size_t(r0) * size_t(s.in) : nullptr, g,
+                     g + Mlp::off_b1(s), g + Mlp::off_W2(s), g + Mlp::off_b2(s));
+      }
+    };
+    run(size_t(chunks), body);
+    for (int c = 0; c < chunks; ++c) {  // fixed-order reduction
+      const float* g = chunk_grads_.data() + size_t(c) * max_mlp_params_;
+      for (size_t i = 0; i < np; ++i) v_p[i] += g[i];
+    }
+  }
+
+  Status render_fwd(const Camera& cam, const NeuralGaussians<float>& ng, float* rgb) {
+    GaussianParams gp;
+    gp.count = ng.count;
+    gp.means = ng.means;
+    gp.log_scales = ng.log_scales;
+    gp.quats = ng.quats;
+    gp.opacities = ng.opacities;
+    gp.colors = ng.colors;
+    RenderOptions ro;
+#ifdef NDEBUG
+    ro.validate_inputs = false;  // decoded values are finite by construction; debug builds check
+#endif
+    return renderer_->forward(cam, gp, ro, rgb);
+  }
+
+  Status render_bwd(const float* v_rgb, float* v_means, float* v_log_scales, float* v_quats, float* v_opacities,
+                    float* v_colors, float* v_means2d) {
+    GaussianGrads g;
+    g.v_means = v_means;
+    g.v_log_scales = v_log_scales;
+    g.v_quats = v_quats;
+    g.v_opacities = v_opacities;
+    g.v_colors = v_colors;
+    g.v_means2d = v_means2d;
+    return renderer_->backward(v_rgb, &g);
+  }
+
+  void loss_bwd(int W, int H, const float* image, const float* target, float* v_image, double* l1, double* ssim) {
+    kt_->loss_bwd(&loss_params_, W, H, image, target, 1.0, loss_scratch_.data(), v_image, l1, ssim);
+  }
+
+  void loss_fwd(int W, int H, const float* image, const float* target, double* l1, double* ssim) {
+    kt_->loss_fwd(&loss_params_, W, H, image, target, loss_scratch_.data(), l1, ssim);
+  }
+
+ private:
+  static int chunk_count(int32_t batch) { return std::max(1, std::min(kChunks, int(batch / kMinChunkRows))); }
+  static void chunk_rows(int32_t batch, int chunks, int c, int32_t* r0, int32_t* r1) {
+    *r0 = int32_t(int64_t(batch) * c / chunks);
+    *r1 = int32_t(int64_t(batch) * (c + 1) / chunks);
+  }
+  template <class F>
+  void run(size_t n, F& body) {
+    if (pool_ && n > 1)
+      pool_->parallel_for(n, 1, body);
+    else
+      body(0, n, 0);
+  }
+
+  Renderer* renderer_ = nullptr;
+  const simd::KernelTable* kt_ = nullptr;
+  platform::ThreadPool* pool_ = nullptr;
+  simd::LossParams loss_params_{};
+  std::vector<float> loss_scratch_;
+  std::vector<float> chunk_grads_;
+  size_t max_mlp_params_ = 0;
+};
+
+}  // namespace gs::model::detail

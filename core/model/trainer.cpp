@@ -1,0 +1,631 @@
+// SPDX-License-Identifier: MIT
+// The training loop (see gs/model/trainer.h): view sampling, learning-rate schedules, dense Adam
+// per parameter group, densification statistics, anchor growing / pruning under the budgets,
+// image-feature refresh, checkpoints; and ModelRenderer for evaluation.
+#include "gs/model/trainer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+
+#include "byte_codec.h"
+#include "float_backend.h"
+#include "gs/model/image_features.h"
+#include "gs/platform/clock.h"
+#include "gs/platform/file.h"
+#include "gs/platform/thread_pool.h"
+#include "gs/render.h"
+
+namespace gs::model {
+
+namespace {
+
+constexpr char kCheckpointMagic[8] = {'H', 'B', 'G', 'S', 'C', 'K', 'P', 'T'};
+constexpr uint32_t kCheckpointVersion = 1;
+
+// expon(lr0, lr1, steps)(it): log-linear from lr0 to lr1 over `steps`, then held (Part B section 6).
+double expon_lr(double lr0, double lr1, int steps, int it) {
+  if (lr0 == lr1) return lr0;
+  const double t = std::min(std::max(double(it) / double(std::max(steps, 1)), 0.0), 1.0);
+  return std::exp((1 - t) * std::log(lr0) + t * std::log(lr1));
+}
+
+// One optimised tensor: parameters (owned by the model), gradient and Adam moments. Per-anchor
+// groups hold row_floats values per anchor and are stepped over the live rows only.
+struct ParamGroup {
+  const char* name = "";
+  float* param = nullptr;
+  size_t row_floats = 0;  // per-anchor groups: floats per anchor; 0 = a fixed-size tensor
+  size_t fixed_size = 0;  // fixed-size groups: element count
+  std::vector<float> grad, m, v;
+  double lr0 = 0, lr1 = 0;
+  size_t live(size_t anchors) const { return row_floats ? row_floats * anchors : fixed_size; }
+};
+
+struct CellKey {
+  int64_t x, y, z;
+  bool operator<(const CellKey& o) const { return x != o.x ? x < o.x : (y != o.y ? y < o.y : z < o.z); }
+  bool operator==(const CellKey& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+
+}  // namespace
+
+float cameras_extent(const std::vector<const Camera*>& cameras) {
+  if (cameras.empty()) return 1.0f;
+  std::vector<double> centres(cameras.size() * 3);
+  double mean[3] = {0, 0, 0};
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    camera_centre(cameras[i]->pose, &centres[3 * i]);
+    for (int c = 0; c < 3; ++c) mean[c] += centres[3 * i + c] / double(cameras.size());
+  }
+  double radius = 0;
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    double d2 = 0;
+    for (int c = 0; c < 3; ++c) d2 += (centres[3 * i + c] - mean[c]) * (centres[3 * i + c] - mean[c]);
+    radius = std::max(radius, std::sqrt(d2));
+  }
+  return float(1.1 * (radius > 0 ? radius : 1.0));
+}
+
+// ---- Trainer ----------------------------------------------------------------------------------
+
+static ModelParamsT<float> model_params(const HybridModel& model) {
+  ModelParamsT<float> p;
+  const bool paper = model.config.image_features == ImageFeatureMode::kPaper;
+  p.anchors.count = model.anchor_count;
+  p.anchors.k = model.config.k;
+  p.anchors.feature_dim = model.config.feature_dim;
+  p.anchors.positions = model.positions.data();
+  p.anchors.offsets = model.offsets.data();
+  p.anchors.log_scales = model.log_scales.data();
+  p.anchors.features = model.features.data();
+  p.image_raw = paper ? model.image_raw.data() : nullptr;
+  p.image_feature_dim = paper ? model.config.image_feature_dim : 0;
+  for (int i = 0; i < kMlpCount; ++i) {
+    p.mlp[i] = model.mlps[i].params.empty() ? nullptr : model.mlps[i].params.data();
+    p.shapes[i] = model.mlps[i].shape;
+  }
+  return p;
+}
+
+
+struct Trainer::Impl {
+  HybridModel model;
+  TrainOptions opt;
+  std::vector<const io::DatasetView*> views;
+  std::vector<const Camera*> cameras;
+  platform::ThreadPool* pool = nullptr;
+  const simd::KernelTable* kernels = nullptr;
+  ImageFeatureBank bank;
+  Renderer renderer;
+  detail::FloatBackend backend;
+  StepWorkspace<float> ws;
+  std::vector<float> target;  // [H, W, 3] of the current view
+  std::vector<ParamGroup> groups;  // offsets, log_scales, features, then the MLPs
+  int iteration = 0;
+  detail::SplitMix64 rng;
+  std::vector<int32_t> view_order;
+  size_t view_pos = 0;
+  // Densification statistics (capacity rows).
+  std::vector<float> opacity_accum;   // [cap]
+  std::vector<int32_t> anchor_seen;   // [cap]
+  std::vector<float> grad_accum;      // [cap, k]
+  std::vector<int32_t> grad_denom;    // [cap, k]
+  // Growth scratch (capacity-sized; std::sort works in place).
+  std::vector<CellKey> existing_cells;            // [cap]
+  std::vector<std::pair<CellKey, uint32_t>> cand;  // [cap k] (cell, candidate index row * k + j)
+  std::vector<uint8_t> pruned;                     // [cap]
+  uint64_t planned_bytes = 0;
+
+  size_t cap() const { return model.capacity(); }
+  int k() const { return model.config.k; }
+  bool paper() const { return model.config.image_features == ImageFeatureMode::kPaper; }
+
+  ModelParamsT<float> params() const { return model_params(model); }
+
+  void build_groups() {
+    const ModelConfig& c = model.config;
+    const double E = model.scene_extent;
+    groups.clear();
+    auto anchor_group = [&](const char* name, std::vector<float>& v, size_t row, double lr0, double lr1) {
+      ParamGroup g;
+      g.name = name;
+      g.param = v.data();
+      g.row_floats = row;
+      g.lr0 = lr0;
+      g.lr1 = lr1;
+      groups.push_back(std::move(g));
+    };
+    anchor_group("offsets", model.offsets, size_t(c.k) * 3, opt.lr_offset_init * E, opt.lr_offset_final * E);
+    anchor_group("scaling", model.log_scales, 6, opt.lr_scaling, opt.lr_scaling);
+    anchor_group("features", model.features, size_t(c.feature_dim), opt.lr_feature, opt.lr_feature);
+    const double lrs[kMlpCount][2] = {{opt.lr_mlp_opacity_init, opt.lr_mlp_opacity_final},
+                                      {opt.lr_mlp_cov_init, opt.lr_mlp_cov_final},
+                                      {opt.lr_mlp_color_init, opt.lr_mlp_color_final},
+                                      {opt.lr_mlp_image_init, opt.lr_mlp_image_final}};
+    static const char* names[kMlpCount] = {"mlp_opacity", "mlp_cov", "mlp_color", "mlp_image"};
+    for (int i = 0; i < kMlpCount; ++i) {
+      if (model.mlps[i].params.empty()) continue;
+      ParamGroup g;
+      g.name = names[i];
+      g.param = model.mlps[i].params.data();
+      g.fixed_size = model.mlps[i].params.size();
+      g.lr0 = lrs[i][0];
+      g.lr1 = lrs[i][1];
+      groups.push_back(std::move(g));
+    }
+    for (ParamGroup& g : groups) {
+      const size_t n = g.row_floats ? g.row_floats * cap() : g.fixed_size;
+      g.grad.assign(n, 0.0f);
+      g.m.assign(n, 0.0f);
+      g.v.assign(n, 0.0f);
+    }
+  }
+
+  ModelGradsT<float> grads() {
+    ModelGradsT<float> g;
+    g.offsets = groups[0].grad.data();
+    g.log_scales = groups[1].grad.data();
+    g.features = groups[2].grad.data();
+    size_t gi = 3;
+    for (int i = 0; i < kMlpCount; ++i) g.mlp[i] = model.mlps[i].params.empty() ? nullptr : groups[gi++].grad.data();
+    return g;
+  }
+
+  int next_view() {
+    if (view_pos >= view_order.size()) {  // new epoch: Fisher-Yates with the run's generator
+      for (size_t i = 0; i < view_order.size(); ++i) view_order[i] = int32_t(i);
+      for (size_t i = view_order.size(); i > 1; --i) std::swap(view_order[i - 1], view_order[rng.next() % i]);
+      view_pos = 0;
+    }
+    return view_order[view_pos++];
+  }
+
+  void load_target(const io::DatasetView& v) {
+    const std::vector<uint8_t>& px = v.image.pixels;
+    for (size_t i = 0; i < px.size(); ++i) target[i] = float(px[i]) * (1.0f / 255.0f);
+  }
+
+  void adam_all(int it) {
+    const size_t M = model.anchor_count;
+    for (ParamGroup& g : groups) {
+      simd::AdamParams ap{expon_lr(g.lr0, g.lr1, opt.schedule_iterations, it), 0.9, 0.999, opt.adam_eps, it};
+      const size_t n = g.live(M);
+      const size_t chunk = 16384;
+      auto body = [&](size_t b, size_t e, int) {
+        for (size_t c = b; c < e; ++c) {
+          const size_t lo = c * chunk, hi = std::min(n, lo + chunk);
+          kernels->adam_step(&ap, hi - lo, g.param + lo, g.grad.data() + lo, g.m.data() + lo, g.v.data() + lo);
+        }
+      };
+      const size_t chunks = (n + chunk - 1) / chunk;
+      if (pool && chunks > 1)
+        pool->parallel_for(chunks, 1, body);
+      else
+        body(0, chunks, 0);
+    }
+  }
+
+  void accumulate_stats(const Camera& cam) {
+    const size_t V = last_visible;
+    const int K = k();
+    const float* alpha = ws.y[kMlpOpacity].data();
+    for (size_t v = 0; v < V; ++v) {
+      const uint32_t row = ws.rows[v];
+      float sum = 0;
+      for (int j = 0; j < K; ++j) sum += std::max(alpha[v * size_t(K) + size_t(j)], 0.0f);
+      opacity_accum[row] += sum;
+      anchor_seen[row] += 1;
+    }
+    const int32_t* radii = renderer.radii();
+    const float hw = 0.5f * float(cam.intr.width), hh = 0.5f * float(cam.intr.height);
+    for (size_t n = 0; n < ws.ng.count; ++n) {
+      if (radii[n] <= 0) continue;
+      const uint32_t s = ws.source[n];
+      const size_t idx = size_t(ws.rows[s / uint32_t(K)]) * size_t(K) + s % uint32_t(K);
+      const float gx = ws.v_means2d[2 * n] * hw, gy = ws.v_means2d[2 * n + 1] * hh;  // NDC-space gradient
+      grad_accum[idx] += std::sqrt(gx * gx + gy * gy);
+      grad_denom[idx] += 1;
+    }
+  }
+
+  // Moves anchor row src to dst in every per-anchor array (model, optimiser, statistics).
+  void move_row(size_t src, size_t dst) {
+    const ModelConfig& c = model.config;
+    auto mv = [&](float* base, size_t w) { std::memmove(base + dst * w, base + src * w, w * sizeof(float)); };
+    mv(model.positions.data(), 3);
+    mv(model.offsets.data(), size_t(c.k) * 3);
+    mv(model.log_scales.data(), 6);
+    mv(model.features.data(), size_t(c.feature_dim));
+    if (paper()) mv(model.image_raw.data(), kImageRawDim);
+    for (size_t gi = 0; gi < 3; ++gi) {
+      mv(groups[gi].m.data(), groups[gi].row_floats);
+      mv(groups[gi].v.data(), groups[gi].row_floats);
+    }
+    opacity_accum[dst] = opacity_accum[src];
+    anchor_seen[dst] = anchor_seen[src];
+    mv(grad_accum.data(), size_t(c.k));
+    std::memmove(grad_denom.data() + dst * size_t(c.k), grad_denom.data() + src * size_t(c.k), size_t(c.k) * sizeof(int32_t));
+  }
+
+  // Clears a newly added anchor row's optimiser state and statistics.
+  void clear_row(size_t row) {
+    for (size_t gi = 0; gi < 3; ++gi) {
+      const size_t w = groups[gi].row_floats;
+      std::fill(groups[gi].m.begin() + std::ptrdiff_t(row * w), groups[gi].m.begin() + std::ptrdiff_t((row + 1) * w), 0.0f);
+      std::fill(groups[gi].v.begin() + std::ptrdiff_t(row * w), groups[gi].v.begin() + std::ptrdiff_t((row + 1) * w), 0.0f);
+    }
+    opacity_accum[row] = 0;
+    anchor_seen[row] = 0;
+    for (int j = 0; j < k(); ++j) {
+      grad_accum[row * size_t(k()) + size_t(j)] = 0;
+      grad_denom[row * size_t(k()) + size_t(j)] = 0;
+    }
+  }
+
+  static CellKey cell_of(const float* p, double size) {
+    return {int64_t(std::llround(double(p[0]) / size)), int64_t(std::llround(double(p[1]) / size)),
+            int64_t(std::llround(double(p[2]) / size))};
+  }
+
+  // One growth level (Part B section 7 step 2); returns the number of anchors added.
+  size_t grow_level(int level, double min_denom) {
+    const ModelConfig& c = model.config;
+    const size_t M = model.anchor_count, K = size_t(c.k);
+    const double threshold = opt.densify_grad_threshold * std::pow(double(opt.update_hierarchy_factor / 2), level);
+    int factor = opt.update_init_factor;
+    for (int l = 0; l < level; ++l) factor /= opt.update_hierarchy_factor;
+    const double size = double(model.voxel_size) * double(std::max(factor, 1));
+    const double keep = std::pow(0.5, level + 1);
+    size_t nc = 0;
+    for (size_t idx = 0; idx < M * K; ++idx) {
+      const bool random_keep = rng.uniform() > keep;  // drawn for every candidate: a fixed stream
+      if (!(grad_denom[idx] > min_denom) || !random_keep) continue;
+      if (grad_accum[idx] / float(grad_denom[idx]) < threshold) continue;
+      const size_t row = idx / K, j = idx % K;
+      const float* a = &model.positions[3 * row];
+      const float* o = &model.offsets[(row * K + j) * 3];
+      const float* ls = &model.log_scales[6 * row];
+      const float mu[3] = {a[0] + o[0] * std::exp(ls[0]), a[1] + o[1] * std::exp(ls[1]), a[2] + o[2] * std::exp(ls[2])};
+      cand[nc++] = {cell_of(mu, size), uint32_t(idx)};
+    }
+    if (nc == 0) return 0;
+    std::sort(cand.begin(), cand.begin() + std::ptrdiff_t(nc));
+    for (size_t i = 0; i < M; ++i) existing_cells[i] = cell_of(&model.positions[3 * i], size);
+    std::sort(existing_cells.begin(), existing_cells.begin() + std::ptrdiff_t(M));
+    size_t added = 0;
+    for (size_t b = 0; b < nc;) {
+      size_t e = b + 1;
+      while (e < nc && cand[e].first == cand[b].first) ++e;
+      const CellKey cell = cand[b].first;
+      const bool taken = std::binary_search(existing_cells.begin(), existing_cells.begin() + std::ptrdiff_t(M), cell);
+      if (!taken && model.anchor_count < cap()) {
+        const size_t row = model.anchor_count++;
+        const float pos[3] = {float(double(cell.x) * size), float(double(cell.y) * size), float(double(cell.z) * size)};
+        std::copy(pos, pos + 3, &model.positions[3 * row]);
+        std::fill(&model.offsets[row * K * 3], &model.offsets[(row + 1) * K * 3], 0.0f);
+        std::fill(&model.log_scales[6 * row], &model.log_scales[6 * row + 6], float(std::log(size)));
+        // Feature = element-wise max over the parents in this cell (Scaffold-GS; order-consistent).
+        float* f = &model.features[row * size_t(c.feature_dim)];
+        for (int d = 0; d < c.feature_dim; ++d) {
+          float best = -INFINITY;
+          for (size_t q = b; q < e; ++q) best = std::max(best, model.features[(cand[q].second / K) * size_t(c.feature_dim) + size_t(d)]);
+          f[d] = best;
+        }
+        if (paper()) bank.compute(pos, 1, &model.image_raw[row * size_t(kImageRawDim)], nullptr);
+        clear_row(row);
+        ++added;
+      }
+      b = e;
+    }
+    return added;
+  }
+
+  void adjust_anchors() {
+    const size_t K = size_t(k());
+    const double min_denom = opt.update_interval * opt.success_threshold * 0.5;
+    const size_t M0 = model.anchor_count;
+    size_t added = 0;
+    for (int level = 0; level < opt.update_depth; ++level) {
+      if (level > 0 && added == 0) break;  // deeper levels run only after a level added something
+      added += grow_level(level, min_denom);
+    }
+    for (size_t idx = 0; idx < M0 * K; ++idx)
+      if (grad_denom[idx] > min_denom) {
+        grad_denom[idx] = 0;
+        grad_accum[idx] = 0;
+      }
+    // Prune anchors that stayed nearly transparent over enough views; never the last anchor.
+    const double min_seen = opt.update_interval * opt.success_threshold;
+    size_t keep_count = 0;
+    const size_t M = model.anchor_count;
+    for (size_t i = 0; i < M; ++i) {
+      pruned[i] = anchor_seen[i] > min_seen && opacity_accum[i] < opt.min_opacity * anchor_seen[i];
+      keep_count += !pruned[i];
+    }
+    if (keep_count > 0) {
+      size_t dst = 0;
+      for (size_t i = 0; i < M; ++i) {
+        if (pruned[i]) continue;
+        if (dst != i) move_row(i, dst);
+        ++dst;
+      }
+      model.anchor_count = dst;
+    }
+    for (size_t i = 0; i < model.anchor_count; ++i) {
+      if (anchor_seen[i] > min_seen) {
+        opacity_accum[i] = 0;
+        anchor_seen[i] = 0;
+      }
+      for (int l = 3; l < 6; ++l) model.log_scales[6 * i + size_t(l)] = std::min(model.log_scales[6 * i + size_t(l)], 0.05f);
+    }
+  }
+
+  size_t last_visible = 0;
+};
+
+Trainer::Trainer() : impl_(new Impl) {}
+Trainer::~Trainer() = default;
+
+Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std::vector<const io::DatasetView*>& train_views,
+                                                   const TrainOptions& options, platform::ThreadPool* pool,
+                                                   const simd::KernelTable* kernels) {
+  if (train_views.empty()) return invalid_argument("trainer: no training views");
+  GS_RETURN_IF_ERROR(model.config.validate());
+  if (model.anchor_count == 0) return invalid_argument("trainer: the model has no anchors");
+  if (model.anchor_count > model.capacity()) return invalid_argument("trainer: the model holds more anchors than its capacity");
+  if (options.iterations < 0 || options.schedule_iterations < 1 || options.update_interval < 1 || options.update_depth < 0 ||
+      options.update_hierarchy_factor < 1 || options.update_init_factor < 1)
+    return invalid_argument("trainer: iteration counts and densification intervals must be positive");
+  std::unique_ptr<Trainer> t(new Trainer());
+  Impl& d = *t->impl_;
+  d.model = std::move(model);
+  d.opt = options;
+  d.views = train_views;
+  d.pool = pool;
+  d.kernels = kernels ? kernels : &simd::best_kernel_table();
+  int max_w = 1, max_h = 1;
+  std::vector<const io::Image8*> images;
+  for (size_t i = 0; i < train_views.size(); ++i) {
+    const io::DatasetView& v = *train_views[i];
+    GS_RETURN_IF_ERROR(validate_camera(v.camera));
+    if (v.image.channels != 3 || v.image.width != v.camera.intr.width || v.image.height != v.camera.intr.height)
+      return invalid_argument("trainer: view '" + v.name + "' has a " + std::to_string(v.image.width) + "x" +
+                              std::to_string(v.image.height) + " image with " + std::to_string(v.image.channels) +
+                              " channels, but its camera is " + std::to_string(v.camera.intr.width) + "x" +
+                              std::to_string(v.camera.intr.height) + " RGB");
+    d.cameras.push_back(&v.camera);
+    images.push_back(&v.image);
+    max_w = std::max(max_w, v.camera.intr.width);
+    max_h = std::max(max_h, v.camera.intr.height);
+  }
+  if (d.paper()) GS_RETURN_IF_ERROR(d.bank.init(d.cameras, images));
+  const size_t cap = d.cap(), K = size_t(d.k());
+  RenderCapacity rc;
+  rc.max_gaussians = cap * K;
+  rc.max_isects = cap * K * 8;
+  rc.max_width = max_w;
+  rc.max_height = max_h;
+  rc.max_sh_degree = 0;
+  GS_RETURN_IF_ERROR(d.renderer.init(rc, pool, d.kernels));
+  size_t max_params = 0;
+  for (const Mlp& m : d.model.mlps) max_params = std::max(max_params, m.params.size());
+  d.backend.init(&d.renderer, d.kernels, pool, max_params, max_w);
+  ModelParamsT<float> p = d.params();
+  d.ws.reserve(cap, d.k(), p.shapes, p.image_feature_dim, max_w, max_h);
+  d.target.assign(size_t(max_w) * size_t(max_h) * 3, 0.0f);
+  d.build_groups();
+  d.rng.state = options.seed * 0x9E3779B97F4A7C15ull + 7;
+  d.view_order.assign(train_views.size(), 0);
+  d.view_pos = d.view_order.size();  // first call shuffles
+  d.opacity_accum.assign(cap, 0.0f);
+  d.anchor_seen.assign(cap, 0);
+  d.grad_accum.assign(cap * K, 0.0f);
+  d.grad_denom.assign(cap * K, 0);
+  d.existing_cells.assign(cap, CellKey{0, 0, 0});
+  d.cand.assign(cap * K, {CellKey{0, 0, 0}, 0u});
+  d.pruned.assign(cap, 0);
+  if (d.paper()) d.bank.compute(d.model.positions.data(), d.model.anchor_count, d.model.image_raw.data(), pool);
+  uint64_t bytes = Renderer::plan_bytes(rc);
+  bytes += uint64_t(d.model.positions.size() + d.model.offsets.size() + d.model.log_scales.size() +
+                    d.model.features.size() + d.model.image_raw.size()) * 4;
+  for (const ParamGroup& g : d.groups) bytes += uint64_t(g.grad.size() * 3) * 4;
+  bytes += uint64_t(d.ws.X.size() * 3 + d.ws.means.size() * 4 + d.ws.quats.size() * 2 + d.ws.rgb.size() * 2) * 4;
+  bytes += uint64_t(cap * K) * (4 + 4 + sizeof(d.cand[0]));
+  d.planned_bytes = bytes;
+  return t;
+}
+
+Status Trainer::step(IterationStats* stats) {
+  Impl& d = *impl_;
+  const double t0 = platform::now_seconds();
+  const int it = d.iteration + 1;
+  const int vi = d.next_view();
+  const io::DatasetView& view = *d.views[size_t(vi)];
+  d.load_target(view);
+  const size_t M = d.model.anchor_count;
+  for (ParamGroup& g : d.groups) std::fill(g.grad.begin(), g.grad.begin() + std::ptrdiff_t(g.live(M)), 0.0f);
+  ModelParamsT<float> p = d.params();
+  ModelGradsT<float> grads = d.grads();
+  StepResult res;
+  GS_RETURN_IF_ERROR(step_forward_backward(d.backend, p, view.camera, d.target.data(), d.opt.step, d.ws, &grads, &res));
+  d.last_visible = res.visible_anchors;
+  if (it > d.opt.stat_start && it < d.opt.update_until) d.accumulate_stats(view.camera);
+  d.adam_all(it);
+  bool adjusted = false;
+  if (it > d.opt.update_from && it % d.opt.update_interval == 0 && it < d.opt.update_until) {
+    d.adjust_anchors();
+    adjusted = true;
+  }
+  if (d.paper() && d.opt.image_feature_refresh > 0 && it % d.opt.image_feature_refresh == 0)
+    d.bank.compute(d.model.positions.data(), d.model.anchor_count, d.model.image_raw.data(), d.pool);
+  d.iteration = it;
+  if (stats) {
+    stats->iteration = it;
+    stats->view = vi;
+    stats->step = res;
+    const size_t n = size_t(view.camera.intr.width) * size_t(view.camera.intr.height) * 3;
+    double se = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const double e = double(d.ws.rgb[i]) - double(d.target[i]);
+      se += e * e;
+    }
+    stats->psnr = se > 0 ? -10.0 * std::log10(se / double(n)) : 99.0;
+    stats->anchors = d.model.anchor_count;
+    stats->adjusted = adjusted;
+    stats->seconds = platform::now_seconds() - t0;
+  }
+  return Status::Ok();
+}
+
+int Trainer::iteration() const { return impl_->iteration; }
+const HybridModel& Trainer::model() const { return impl_->model; }
+const TrainOptions& Trainer::options() const { return impl_->opt; }
+uint64_t Trainer::planned_bytes() const { return impl_->planned_bytes; }
+
+Status Trainer::save_checkpoint(const std::string& path) const {
+  const Impl& d = *impl_;
+  detail::ByteWriter w;
+  w.raw(kCheckpointMagic, 8);
+  w.u32(kCheckpointVersion);
+  const std::vector<uint8_t> model = serialize_model(d.model);
+  w.u64(model.size());
+  w.raw(model.data(), model.size());
+  w.u64(d.views.size());
+  w.i32(d.iteration);
+  w.u64(d.rng.state);
+  w.u64(d.view_pos);
+  for (int32_t v : d.view_order) w.i32(v);
+  const size_t M = d.model.anchor_count, K = size_t(d.model.config.k);
+  w.u64(d.groups.size());
+  for (const ParamGroup& g : d.groups) {
+    w.floats(g.m.data(), g.live(M));
+    w.floats(g.v.data(), g.live(M));
+  }
+  w.floats(d.opacity_accum.data(), M);
+  for (size_t i = 0; i < M; ++i) w.i32(d.anchor_seen[i]);
+  w.floats(d.grad_accum.data(), M * K);
+  for (size_t i = 0; i < M * K; ++i) w.i32(d.grad_denom[i]);
+  w.u64(detail::fnv1a64(w.bytes.data(), w.bytes.size()));
+  return platform::write_file_atomic(path, w.bytes.data(), w.bytes.size());
+}
+
+Status Trainer::load_checkpoint(const std::string& path) {
+  Impl& d = *impl_;
+  Expected<std::vector<uint8_t>> file = platform::read_file(path);
+  if (!file.ok()) return file.status();
+  const std::vector<uint8_t>& bytes = *file;
+  detail::ByteReader r(bytes.data(), bytes.size(), path);
+  char magic[8] = {};
+  if (!r.bytes(magic, 8, "the file signature")) return r.status();
+  if (std::memcmp(magic, kCheckpointMagic, 8) != 0) return parse_error(path + ": not an hbgs checkpoint");
+  const uint32_t version = r.u32("the format version");
+  if (!r.status().ok()) return r.status();
+  if (version != kCheckpointVersion)
+    return unsupported(path + ": checkpoint format version " + std::to_string(version) + ", this hbgs reads version " +
+                       std::to_string(kCheckpointVersion));
+  if (bytes.size() < 8 || detail::fnv1a64(bytes.data(), bytes.size() - 8) != io::detail::load_u64(bytes.data() + bytes.size() - 8))
+    return parse_error(path + ": checksum mismatch (the checkpoint is truncated or corrupt)");
+  const uint64_t model_size = r.u64("the model size");
+  if (!r.status().ok()) return r.status();
+  if (model_size > bytes.size() - r.offset()) return parse_error(path + ": the embedded model is larger than the file");
+  Expected<HybridModel> model = deserialize_model(bytes.data() + r.offset(), size_t(model_size), path + " (model)");
+  if (!model.ok()) return model.status();
+  r.skip(size_t(model_size));
+  const ModelConfig& a = model->config;
+  const ModelConfig& b = d.model.config;
+  if (a.k != b.k || a.feature_dim != b.feature_dim || a.hidden != b.hidden || a.image_features != b.image_features ||
+      a.image_feature_dim != b.image_feature_dim || a.image_feature_hidden != b.image_feature_hidden ||
+      a.max_anchors != b.max_anchors || a.max_gaussians != b.max_gaussians)
+    return invalid_argument(path + ": the checkpoint's model configuration differs from this run's");
+  const uint64_t nviews = r.u64("the view count");
+  if (r.status().ok() && nviews != d.views.size())
+    return invalid_argument(path + ": the checkpoint was trained on " + std::to_string(nviews) +
+                            " views, this dataset has " + std::to_string(d.views.size()) + " training views");
+  const int iteration = r.i32("the iteration");
+  const uint64_t rng_state = r.u64("the generator state");
+  const uint64_t view_pos = r.u64("the view position");
+  std::vector<int32_t> order(d.views.size());
+  for (int32_t& v : order) {
+    v = r.i32("the view order");
+    if (r.status().ok() && (v < 0 || size_t(v) >= d.views.size())) return parse_error(path + ": bad view index");
+  }
+  const uint64_t ngroups = r.u64("the group count");
+  if (!r.status().ok()) return r.status();
+  if (ngroups != d.groups.size() || view_pos > order.size() || iteration < 0)
+    return parse_error(path + ": inconsistent optimiser state");
+  // Everything is checked: adopt the model into the planned arrays (no reallocation).
+  HybridModel& m = d.model;
+  const size_t M = model->anchor_count, K = size_t(a.k);
+  auto adopt = [](std::vector<float>& dst, const std::vector<float>& src, size_t n) { std::copy(src.begin(), src.begin() + std::ptrdiff_t(n), dst.begin()); };
+  adopt(m.positions, model->positions, M * 3);
+  adopt(m.offsets, model->offsets, M * K * 3);
+  adopt(m.log_scales, model->log_scales, M * 6);
+  adopt(m.features, model->features, M * size_t(a.feature_dim));
+  if (d.paper()) adopt(m.image_raw, model->image_raw, M * size_t(kImageRawDim));
+  for (int i = 0; i < kMlpCount; ++i) adopt(m.mlps[i].params, model->mlps[i].params, model->mlps[i].params.size());
+  m.anchor_count = M;
+  m.voxel_size = model->voxel_size;
+  m.scene_extent = model->scene_extent;
+  for (ParamGroup& g : d.groups) {
+    r.floats(g.m.data(), g.live(M), "Adam moments");
+    r.floats(g.v.data(), g.live(M), "Adam moments");
+  }
+  r.floats(d.opacity_accum.data(), M, "statistics");
+  for (size_t i = 0; i < M; ++i) d.anchor_seen[i] = r.i32("statistics");
+  r.floats(d.grad_accum.data(), M * K, "statistics");
+  for (size_t i = 0; i < M * K; ++i) d.grad_denom[i] = r.i32("statistics");
+  if (!r.status().ok()) return r.status();
+  d.iteration = iteration;
+  d.rng.state = rng_state;
+  d.view_pos = size_t(view_pos);
+  d.view_order = order;
+  return Status::Ok();
+}
+
+// ---- ModelRenderer ----------------------------------------------------------------------------
+
+struct ModelRenderer::Impl {
+  Renderer renderer;
+  detail::FloatBackend backend;
+  StepWorkspace<float> ws;
+  size_t capacity = 0;
+};
+
+ModelRenderer::ModelRenderer() : impl_(new Impl) {}
+ModelRenderer::~ModelRenderer() = default;
+
+Status ModelRenderer::init(const HybridModel& model, int max_width, int max_height, platform::ThreadPool* pool,
+                           const simd::KernelTable* kernels) {
+  GS_RETURN_IF_ERROR(model.config.validate());
+  const simd::KernelTable* kt = kernels ? kernels : &simd::best_kernel_table();
+  const size_t cap = std::max<size_t>(model.anchor_count, 1), K = size_t(model.config.k);
+  RenderCapacity rc;
+  rc.max_gaussians = cap * K;
+  rc.max_isects = cap * K * 8;
+  rc.max_width = max_width;
+  rc.max_height = max_height;
+  rc.max_sh_degree = 0;
+  GS_RETURN_IF_ERROR(impl_->renderer.init(rc, pool, kt));
+  size_t max_params = 0;
+  for (const Mlp& m : model.mlps) max_params = std::max(max_params, m.params.size());
+  impl_->backend.init(&impl_->renderer, kt, pool, max_params, max_width);
+  ModelParamsT<float> p = model_params(model);
+  impl_->ws.reserve(cap, model.config.k, p.shapes, p.image_feature_dim, max_width, max_height);
+  impl_->capacity = cap;
+  return Status::Ok();
+}
+
+Status ModelRenderer::render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians) {
+  Impl& d = *impl_;
+  if (model.anchor_count > d.capacity) return capacity_exceeded("model renderer: the model has more anchors than planned");
+  GS_RETURN_IF_ERROR(validate_camera(camera));
+  ModelParamsT<float> p = model_params(model);
+  size_t V = 0;
+  const size_t N = decode_view(d.backend, p, camera, d.ws, &V);
+  if (gaussians) *gaussians = N;
+  return d.backend.render_fwd(camera, d.ws.ng, rgb);
+}
+
+}  // namespace gs::model
