@@ -473,6 +473,7 @@ Status Trainer::step(IterationStats* stats) {
     }
     stats->psnr = se > 0 ? -10.0 * std::log10(se / double(n)) : 99.0;
     stats->anchors = d.model.anchor_count;
+    stats->isects = d.renderer.stats().isects;
     stats->adjusted = adjusted;
     stats->seconds = platform::now_seconds() - t0;
   }

@@ -53,6 +53,7 @@ struct IterationStats {
   StepResult step;
   double psnr = 0;         // of this iteration's render against its target (float, unclamped)
   size_t anchors = 0;      // live anchors after the iteration
+  size_t isects = 0;       // Gaussian-tile pairs rendered
   double seconds = 0;      // wall time of this iteration
   bool adjusted = false;   // anchors were grown / pruned this iteration
 };
