@@ -1,0 +1,150 @@
+// SPDX-License-Identifier: MIT
+// Evaluation of a trained model on held-out views: ModelRenderer -> clamp -> 8 bits -> PSNR / SSIM
+// / LPIPS-Alex against the 8-bit ground truth, optional PNGs, and the 3DGS JSON files (written by
+// hand so gs_model needs no JSON library).
+#include "gs/model/evaluate.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cstdio>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+
+#include "gs/io/image.h"
+#include "gs/metrics/image_metrics.h"
+#include "gs/metrics/lpips.h"
+#include "gs/model/trainer.h"
+#include "gs/platform/clock.h"
+#include "gs/platform/file.h"
+
+namespace gs::model {
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+double mean(const std::vector<ViewMetrics>& views, double ViewMetrics::*field) {
+  if (views.empty()) return 0.0;
+  double sum = 0;
+  for (const ViewMetrics& v : views) sum += v.*field;
+  return sum / double(views.size());
+}
+
+// Shortest text that reads back as the same double; JSON has no Inf/NaN, so those become null.
+std::string json_number(double x) {
+  if (!std::isfinite(x)) return "null";
+  char buf[64];
+  const std::to_chars_result r = std::to_chars(buf, buf + sizeof(buf), x);
+  return std::string(buf, r.ptr);
+}
+
+std::string json_string(const std::string& s) {
+  std::string out = "\"";
+  for (const char c : s) {
+    const unsigned char u = static_cast<unsigned char>(c);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (u < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof(buf), "\\u%04x", u);
+      out += buf;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+// "<name>.png" relative to the render folder (the view name may contain sub-folders).
+std::string png_path(const std::string& dir, const std::string& view_name) {
+  std::filesystem::path rel(view_name);
+  rel.replace_extension(".png");
+  return (std::filesystem::path(dir) / rel).string();
+}
+
+}  // namespace
+
+Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<const io::DatasetView*>& views,
+                                    const EvalOptions& options, platform::ThreadPool* pool) {
+  if (views.empty()) return invalid_argument("evaluation: no views to evaluate");
+  int max_w = 0, max_h = 0;
+  for (const io::DatasetView* v : views) {
+    const int w = v->camera.intr.width, h = v->camera.intr.height;
+    if (v->image.width != w || v->image.height != h || v->image.channels != 3)
+      return invalid_argument("evaluation: view " + v->name + ": its image is not a " + std::to_string(w) + "x" +
+                              std::to_string(h) + " RGB image");
+    max_w = std::max(max_w, w);
+    max_h = std::max(max_h, h);
+  }
+  const bool full = !options.psnr_only;
+  if (full && !options.render_dir.empty()) GS_RETURN_IF_ERROR(platform::make_dirs(options.render_dir));
+
+  ModelRenderer renderer;
+  GS_RETURN_IF_ERROR(renderer.init(model, max_w, max_h, pool));
+  std::vector<float> rgb(size_t(max_w) * size_t(max_h) * 3);
+  EvalResult result;
+  result.views.reserve(views.size());
+  std::vector<double> render_ms;
+  for (const io::DatasetView* v : views) {
+    ViewMetrics m;
+    m.name = v->name;
+    const double t0 = platform::now_seconds();
+    GS_RETURN_IF_ERROR(renderer.render(model, v->camera, rgb.data(), &m.gaussians));
+    m.render_ms = 1e3 * (platform::now_seconds() - t0);
+    render_ms.push_back(m.render_ms);
+    const int w = v->camera.intr.width, h = v->camera.intr.height;
+    const io::Image8 img = io::image_from_float_rgb(rgb.data(), w, h);  // clamps to [0, 1], rounds
+    const uint8_t* gt = v->image.pixels.data();
+    m.psnr = metrics::psnr_u8(img.pixels.data(), gt, w, h);
+    if (full) {
+      m.ssim = metrics::ssim_u8(img.pixels.data(), gt, w, h);
+      if (options.lpips) {
+        Expected<double> d = options.lpips->distance(img.pixels.data(), gt, w, h);
+        if (!d.ok()) return Status(d.status().code(), "evaluation: view " + v->name + ": " + d.status().message());
+        m.lpips = *d;
+      }
+      if (!options.render_dir.empty()) {
+        const std::string path = png_path(options.render_dir, v->name);
+        const std::string parent = std::filesystem::path(path).parent_path().string();
+        if (!parent.empty()) GS_RETURN_IF_ERROR(platform::make_dirs(parent));
+        GS_RETURN_IF_ERROR(io::write_png(path, img));
+      }
+    }
+    result.views.push_back(std::move(m));
+  }
+  result.psnr = mean(result.views, &ViewMetrics::psnr);
+  result.ssim = mean(result.views, &ViewMetrics::ssim);
+  result.lpips = full && options.lpips ? mean(result.views, &ViewMetrics::lpips) : -1.0;
+  result.render_ms_median = median(render_ms);
+  return result;
+}
+
+std::string results_json(const EvalResult& r, const std::string& method, const std::string& extra_json_members) {
+  std::string s = "{\n  " + json_string(method) + ": {\n";
+  s += "    \"SSIM\": " + json_number(r.ssim) + ",\n";
+  s += "    \"PSNR\": " + json_number(r.psnr);
+  if (r.lpips >= 0) s += ",\n    \"LPIPS\": " + json_number(r.lpips);
+  if (!extra_json_members.empty()) s += ",\n    " + extra_json_members;
+  return s + "\n  }\n}\n";
+}
+
+std::string per_view_json(const EvalResult& r, const std::string& method) {
+  auto metric = [&r](const char* key, double ViewMetrics::*field) {
+    std::string s = std::string("    \"") + key + "\": {";
+    for (size_t i = 0; i < r.views.size(); ++i)
+      s += (i ? ",\n      " : "\n      ") + json_string(r.views[i].name) + ": " + json_number(r.views[i].*field);
+    return s + (r.views.empty() ? "}" : "\n    }");
+  };
+  std::string s = "{\n  " + json_string(method) + ": {\n";
+  s += metric("SSIM", &ViewMetrics::ssim) + ",\n" + metric("PSNR", &ViewMetrics::psnr);
+  if (r.lpips >= 0) s += ",\n" + metric("LPIPS", &ViewMetrics::lpips);
+  return s + "\n  }\n}\n";
+}
+
+}  // namespace gs::model
