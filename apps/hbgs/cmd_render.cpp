@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // `hbgs render`: renders every selected view of a COLMAP dataset with gs::Renderer (Gaussians from
-// a 3DGS PLY, or initialised from the dataset's SfM points), writes one PNG per view plus
-// render.json with per-view timing and PSNR against the dataset's images.
+// a 3DGS PLY, or initialised from the dataset's SfM points), or of a trained model's dataset (a run
+// folder or .hbgs file) with the model, and writes one PNG per view plus render.json with per-view
+// timing and PSNR against the dataset's images.
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -19,11 +20,14 @@
 #include "gs/io/colmap.h"
 #include "gs/io/image.h"
 #include "gs/io/ply.h"
+#include "gs/model/evaluate.h"
+#include "gs/model/hybrid_model.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/render.h"
 #include "gs/scene_init.h"
 #include "gs/simd/kernel_table.h"
+#include "model_run.h"
 
 namespace hbgs::cli {
 namespace {
@@ -32,7 +36,9 @@ namespace fs = std::filesystem;
 
 struct RenderArgs {
   std::string dataset, ply, out;
+  std::string model_dataset;  // with a model input: overrides the dataset recorded in run.json
   int max_width = 0;
+  bool max_width_given = false;
   int threads = 0;
   std::string isa;  // empty: the best table for this CPU
   std::string split = "all";
@@ -129,8 +135,92 @@ struct ViewResult {
   size_t visible = 0, isects = 0;
 };
 
+// Refuses an --out that is a file or the dataset's own images folder (PNGs would replace it).
+std::string output_problem(const std::string& out, const std::string& dataset) {
+  std::error_code ec;
+  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) return "output " + out + " exists and is not a directory";
+  const fs::path images = fs::path(dataset) / "images";
+  if (fs::exists(out, ec) && fs::exists(images, ec) && fs::equivalent(out, images, ec))
+    return "output " + out + " is the dataset's images folder; choose another --out";
+  return "";
+}
+
+// A run folder or .hbgs file: the model's views of its dataset, through gs::model::evaluate_views.
+int run_render_model(const RenderArgs& a) {
+  const char* cmd = "render";
+  Stopwatch total;
+  if (!a.ply.empty()) return fail(cmd, "--ply cannot be combined with a trained model (" + a.dataset + ")");
+  if (!a.isa.empty()) return fail(cmd, "--isa applies to PLY / SfM-point rendering, not to a trained model");
+  if (a.background != "0,0,0") return fail(cmd, "--background is not supported for a trained model");
+  gs::Expected<ModelSource> src = resolve_model_source(a.dataset, a.model_dataset, a.max_width_given ? a.max_width : -1);
+  if (!src.ok()) return fail(cmd, src.status().to_string());
+  gs::Expected<gs::model::HybridModel> model = gs::model::load_model(src->model_path);
+  if (!model.ok()) return fail(cmd, model.status().to_string());
+  gs::Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(src->dataset, src->max_width, a.split);
+  if (!data.ok()) return fail(cmd, data.status().to_string());
+  if (std::string err = output_problem(a.out, src->dataset); !err.empty()) return fail(cmd, err);
+
+  const bool out_existed = gs::platform::is_directory(a.out);
+  gs::platform::ThreadPool pool(a.threads);
+  gs::model::EvalOptions eo;
+  eo.render_dir = a.out;
+  gs::Expected<gs::model::EvalResult> r = gs::model::evaluate_views(*model, (*data)->views, eo, &pool);
+  if (!r.ok()) {
+    std::error_code ec;
+    if (!out_existed) fs::remove_all(a.out, ec);
+    return fail(cmd, r.status().to_string());
+  }
+
+  nlohmann::json jv = nlohmann::json::array();
+  std::vector<double> times;
+  for (size_t i = 0; i < r->views.size(); ++i) {
+    const gs::model::ViewMetrics& m = r->views[i];
+    const gs::io::DatasetView& v = *(*data)->views[i];
+    const std::string png = output_name(m.name).generic_string();
+    times.push_back(m.render_ms);
+    if (!a.quiet)
+      std::fprintf(stderr, "[%zu/%zu] %s %.1f ms PSNR %s\n", i + 1, r->views.size(), png.c_str(), m.render_ms,
+                   psnr_text(m.psnr, 1).c_str());
+    jv.push_back({{"name", m.name},
+                  {"png", png},
+                  {"split", v.is_test ? "test" : "train"},
+                  {"width", v.camera.intr.width},
+                  {"height", v.camera.intr.height},
+                  {"ms", m.render_ms},
+                  {"psnr_db", std::isfinite(m.psnr) ? nlohmann::json(m.psnr) : nlohmann::json(nullptr)},
+                  {"ssim", m.ssim},
+                  {"gaussians", m.gaussians}});
+  }
+  nlohmann::json j;
+  j["model"] = absolute_path(src->model_path);
+  j["dataset"] = absolute_path(src->dataset);
+  j["split"] = a.split;
+  j["max_width"] = src->max_width;
+  j["anchors"] = model->anchor_count;
+  j["threads"] = pool.num_threads();
+  j["psnr_definition"] = "10*log10(255^2/MSE) over 8-bit RGB; null if identical";
+  j["views"] = std::move(jv);
+  j["summary"] = {{"views", r->views.size()},
+                  {"median_ms", median_of(times)},
+                  {"mean_ms", mean_of(times)},
+                  {"mean_psnr_db", r->psnr},
+                  {"mean_ssim", r->ssim},
+                  {"total_seconds", total.seconds()}};
+  const fs::path json_path = fs::path(a.out) / "render.json";
+  if (gs::Status st = gs::platform::write_file_atomic(json_path.string(), j.dump(2) + "\n"); !st.ok())
+    return fail(cmd, st.to_string());
+  std::printf("hbgs render: %zu views (split %s) of %s from the model %s (%zu anchors)\n", r->views.size(),
+              a.split.c_str(), src->dataset.c_str(), src->model_path.c_str(), model->anchor_count);
+  std::printf("  render: median %.2f ms, mean %.2f ms per view; %d threads\n", median_of(times), mean_of(times),
+              pool.num_threads());
+  std::printf("  PSNR vs dataset images: mean %s, SSIM %.4f\n", psnr_text(r->psnr, 2).c_str(), r->ssim);
+  std::printf("  images: %s/  (timings: %s)\n", a.out.c_str(), json_path.string().c_str());
+  return kExitOk;
+}
+
 int run_render(const RenderArgs& a) {
   const char* cmd = "render";
+  if (is_model_input(a.dataset)) return run_render_model(a);
   Stopwatch total;
 
   // 1. Everything that can be wrong with the inputs is checked before anything is written.
@@ -143,26 +233,13 @@ int run_render(const RenderArgs& a) {
   float background[3] = {0, 0, 0};
   if (std::string err = parse_background(a.background, background); !err.empty())
     return fail(cmd, "--background: " + err);
-  {
-    std::error_code ec;
-    if (fs::exists(a.out, ec) && !fs::is_directory(a.out, ec))
-      return fail(cmd, "output " + a.out + " exists and is not a directory");
-    // Writing <name>.png into the dataset's own images folder would replace the ground truth.
-    const fs::path images = fs::path(a.dataset) / "images";
-    if (fs::exists(a.out, ec) && fs::exists(images, ec) && fs::equivalent(a.out, images, ec))
-      return fail(cmd, "output " + a.out + " is the dataset's images folder; choose another --out");
-  }
+  if (std::string err = output_problem(a.out, a.dataset); !err.empty()) return fail(cmd, err);
 
   Stopwatch load_time;
-  gs::io::DatasetOptions dopt;
-  dopt.max_width = a.max_width;
-  gs::Expected<gs::io::Dataset> dataset = gs::io::load_dataset(a.dataset, dopt);
-  if (!dataset.ok()) return fail(cmd, dataset.status().to_string());
-
-  std::vector<const gs::io::DatasetView*> views;
-  for (const gs::io::DatasetView& v : dataset->views)
-    if (a.split == "all" || (a.split == "test") == v.is_test) views.push_back(&v);
-  if (views.empty()) return fail(cmd, a.dataset + ": no views in split '" + a.split + "'");
+  gs::Expected<std::unique_ptr<LoadedDataset>> loaded_dataset = load_dataset_split(a.dataset, a.max_width, a.split);
+  if (!loaded_dataset.ok()) return fail(cmd, loaded_dataset.status().to_string());
+  const gs::io::Dataset* dataset = &(*loaded_dataset)->dataset;
+  const std::vector<const gs::io::DatasetView*>& views = (*loaded_dataset)->views;
 
   gs::GaussianCloud cloud;
   std::string source;
@@ -323,13 +400,18 @@ int run_render(const RenderArgs& a) {
 
 Command add_render_command(CLI::App& parent) {
   auto args = std::make_shared<RenderArgs>();
-  CLI::App* sub = parent.add_subcommand("render", "Render every view of a COLMAP dataset to PNGs, with timings and PSNR");
-  sub->add_option("dataset", args->dataset, "COLMAP dataset folder (images/ and sparse/0/)")->required();
+  CLI::App* sub = parent.add_subcommand(
+      "render", "Render every view of a COLMAP dataset (or of a trained model's dataset) to PNGs, with timings and PSNR");
+  sub->add_option("dataset", args->dataset,
+                  "COLMAP dataset folder (images/ and sparse/0/), or a run folder / .hbgs model from hbgs train")
+      ->required();
+  sub->add_option("--dataset", args->model_dataset, "With a trained model: its dataset (default: from the run's run.json)");
   sub->add_option("--ply", args->ply, "3DGS PLY with the Gaussians (default: initialise from the SfM points)");
   sub->add_option("--out", args->out, "Output folder for <image>.png and render.json")->required();
-  sub->add_option("--max-width", args->max_width, "Downscale views to at most this width (0: full size)")
-      ->capture_default_str()
-      ->check(CLI::Range(0, gs::io::kMaxImageSide));
+  CLI::Option* max_width = sub->add_option("--max-width", args->max_width,
+                                            "Downscale views to at most this width (0: full size; a model: as trained)")
+                               ->capture_default_str()
+                               ->check(CLI::Range(0, gs::io::kMaxImageSide));
   sub->add_option("--threads", args->threads, "Worker threads (0: all CPUs)")->capture_default_str()->check(CLI::Range(0, 4096));
   sub->add_option("--isa", args->isa, "Kernel variant (default: the best for this CPU)")
       ->check(CLI::IsMember({"ref", "sse2", "avx2", "avx512", "neon64", "neon"}));
@@ -345,7 +427,10 @@ Command add_render_command(CLI::App& parent) {
           },
           "R,G,B"));
   sub->add_flag("-q,--quiet", args->quiet, "No per-view progress lines");
-  return {sub, [args] { return run_render(*args); }};
+  return {sub, [args, max_width] {
+            args->max_width_given = max_width->count() > 0;
+            return run_render(*args);
+          }};
 }
 
 }  // namespace hbgs::cli
