@@ -83,8 +83,22 @@ class FloatBackend {
 #ifdef NDEBUG
     ro.validate_inputs = false;  // decoded values are finite by construction; debug builds check
 #endif
-    return renderer_->forward(cam, gp, ro, rgb);
+    Status st = renderer_->forward(cam, gp, ro, rgb);
+    // The tile-intersection count depends on the Gaussians' screen sizes, which training changes;
+    // when a view needs more than planned, re-plan once with 1.5x headroom (a rare allocation, not
+    // a per-step one) instead of failing the run.
+    const uint64_t needed = renderer_->stats().isects;
+    if (st.code() == StatusCode::kCapacityExceeded && needed > renderer_->capacity().max_isects &&
+        needed < (uint64_t(1) << 31)) {
+      RenderCapacity rc = renderer_->capacity();
+      rc.max_isects = size_t(std::min<uint64_t>(needed + needed / 2, (uint64_t(1) << 31) - 1));
+      GS_RETURN_IF_ERROR(renderer_->init(rc, pool_, kt_));
+      ++replans_;
+      st = renderer_->forward(cam, gp, ro, rgb);
+    }
+    return st;
   }
+  int replans() const { return replans_; }
 
   Status render_bwd(const float* v_rgb, float* v_means, float* v_log_scales, float* v_quats, float* v_opacities,
                     float* v_colors, float* v_means2d) {
@@ -127,6 +141,7 @@ class FloatBackend {
   std::vector<float> loss_scratch_;
   std::vector<float> chunk_grads_;
   size_t max_mlp_params_ = 0;
+  int replans_ = 0;
 };
 
 }  // namespace gs::model::detail

@@ -110,9 +110,10 @@ void ImageFeatureBank::compute_one(const float* p, float* raw) const {
   project_inside(cam, p, xc, &u, &v);
   const Level* lv = &levels_[size_t(j) * kImagePyramidLevels];
   for (int l = 0; l < kImagePyramidLevels; ++l) {
-    // Level l covers the same field of view with width_l / width_0 as many pixels per unit.
-    const double sx = double(lv[l].width) / lv[0].width, sy = double(lv[l].height) / lv[0].height;
-    sample_bilinear(lv[l].rgb, lv[l].width, lv[l].height, u * sx, v * sy, raw + 3 * l);
+    // Level l pixel x covers level-0 pixels [2^l x, 2^l (x + 1)) (the box reduction drops an odd
+    // last column), so continuous coordinates scale by exactly 2^-l.
+    const double scale = 1.0 / double(1 << l);
+    sample_bilinear(lv[l].rgb, lv[l].width, lv[l].height, u * scale, v * scale, raw + 3 * l);
   }
   const double n = std::sqrt(xc[0] * xc[0] + xc[1] * xc[1] + xc[2] * xc[2]);
   raw[9] = float(xc[0] / n);
