@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "gs/simd/kernel_table.h"
@@ -295,6 +296,87 @@ TEST_CASE("mlp: every SIMD table matches the float reference") {
     }
   }
   MESSAGE("SIMD vs ref worst relative error: forward " << worst_fwd << ", backward " << worst_bwd);
+}
+
+// The shapes hbgs trains with, at the batch sizes that hit every tile path: 0 (no-op), 1, one
+// row short of / exactly / one row past 16 lanes, a few chunks, and a real per-view row count.
+// (13,32,16) pads the input to whole vectors, (52,33,70) the hidden layer too, and (300,40,5)
+// exceeds the kernels' stack scratch (the row-at-a-time fallback). Per table and case: forward
+// against the float reference; backward (on the reference forward outputs) with v_x and with
+// v_x = nullptr, both accumulating into random non-zero weight / bias gradients, v_x overwritten
+// over a non-zero fill, canaries after every output; batch 0 must leave every output untouched.
+// Tolerance: kSimdTol, relative to the largest value of each array. The largest sums here are the
+// bias gradients over 3301 rows, which the float reference itself accumulates row by row in
+// float: its rounding error (~sqrt(3301) * 6e-8 relative) is ~3.5e-6, the kernels' chunked sums
+// less, so 2e-5 still holds without loosening.
+TEST_CASE("mlp: every SIMD table matches the float reference on the training shapes and batch tails") {
+  const auto tables = simd_tables();
+  if (tables.empty()) MESSAGE("no SIMD kernel table on this CPU: SIMD comparison skipped");
+  const MlpShape shapes[] = {{52, 32, 10, MlpAct::kTanh},    {52, 32, 70, MlpAct::kNone},
+                             {52, 32, 30, MlpAct::kSigmoid}, {13, 32, 16, MlpAct::kNone},
+                             {36, 32, 70, MlpAct::kNone},    {52, 33, 70, MlpAct::kSigmoid},
+                             {300, 40, 5, MlpAct::kTanh}};
+  const int32_t batches[] = {0, 1, 15, 16, 17, 1000, 3301};
+  const char* names[5] = {"v_x", "v_W1", "v_b1", "v_W2", "v_b2"};
+  double worst_fwd = 0, worst_bwd = 0;
+  for (const MlpShape& s : shapes) {
+    for (int32_t batch : batches) {
+      CAPTURE(s.in); CAPTURE(s.hidden); CAPTURE(s.out); CAPTURE(int(s.act2)); CAPTURE(batch);
+      std::mt19937_64 rng(uint64_t(batch) * 977 + uint64_t(s.in) * 31 + uint64_t(s.out));
+      Net<float> n(s, batch, rng);
+      const size_t I = size_t(s.in), H = size_t(s.hidden), O = size_t(s.out), Bn = size_t(batch);
+      std::uniform_real_distribution<float> u(-1, 1);
+      std::vector<float> v_y(Bn * O);
+      for (float& e : v_y) e = u(rng);
+      n.p[2][H / 2] = -100.0f;  // one dead hidden unit: masked lanes
+      const size_t gn[5] = {Bn * I, H * I, H, O * H, O};
+      std::vector<float> prefill[5];
+      prefill[0] = with_canary(gn[0], 7.0f);  // v_x: overwritten
+      for (int k = 1; k < 5; ++k) {
+        prefill[k] = with_canary(gn[k]);
+        for (size_t e = 0; e < gn[k]; ++e) prefill[k][e] = u(rng);
+      }
+      // Reference, once per case.
+      std::vector<float> h_ref = with_canary(Bn * H), y_ref = with_canary(Bn * O);
+      gs::simd::mlp_fwd_ref<float>(&s, batch, n.p[0].data(), n.p[1].data(), n.p[2].data(), n.p[3].data(),
+                                   n.p[4].data(), h_ref.data(), y_ref.data());
+      std::vector<float> g_ref[5];
+      for (int k = 0; k < 5; ++k) g_ref[k] = prefill[k];
+      gs::simd::mlp_bwd_ref<float>(&s, batch, n.p[0].data(), n.p[1].data(), n.p[2].data(), n.p[3].data(),
+                                   n.p[4].data(), h_ref.data(), y_ref.data(), v_y.data(), g_ref[0].data(),
+                                   g_ref[1].data(), g_ref[2].data(), g_ref[3].data(), g_ref[4].data());
+      for (const gs::simd::KernelTable* t : tables) {
+        CAPTURE(std::string(t->isa));
+        std::vector<float> h_s = with_canary(Bn * H, 3.0f), y_s = with_canary(Bn * O, 3.0f);
+        t->mlp_fwd(&s, batch, n.p[0].data(), n.p[1].data(), n.p[2].data(), n.p[3].data(), n.p[4].data(), h_s.data(),
+                   y_s.data());
+        check_canary(h_s, Bn * H, "hidden");
+        check_canary(y_s, Bn * O, "y");
+        const double ef = std::max(rel_err(h_s, h_ref, Bn * H), rel_err(y_s, y_ref, Bn * O));
+        worst_fwd = std::max(worst_fwd, ef);
+        CHECK(ef <= kSimdTol);
+        for (int with_vx = 0; with_vx < 2; ++with_vx) {
+          CAPTURE(with_vx);
+          std::vector<float> g_s[5];
+          for (int k = 0; k < 5; ++k) g_s[k] = prefill[k];
+          t->mlp_bwd(&s, batch, n.p[0].data(), n.p[1].data(), n.p[2].data(), n.p[3].data(), n.p[4].data(),
+                     h_ref.data(), y_ref.data(), v_y.data(), with_vx ? g_s[0].data() : nullptr, g_s[1].data(),
+                     g_s[2].data(), g_s[3].data(), g_s[4].data());
+          for (int k = with_vx ? 0 : 1; k < 5; ++k) {
+            CAPTURE(std::string(names[k]));
+            check_canary(g_s[k], gn[k], names[k]);
+            const double eb = rel_err(g_s[k], g_ref[k], gn[k]);
+            worst_bwd = std::max(worst_bwd, eb);
+            CHECK(eb <= kSimdTol);
+          }
+          if (!with_vx) CHECK(g_s[0] == prefill[0]);  // v_x = nullptr: nothing written
+          if (batch == 0)
+            for (int k = 0; k < 5; ++k) CHECK(g_s[k] == prefill[k]);  // bit-exact: nothing accumulated
+        }
+      }
+    }
+  }
+  MESSAGE("SIMD vs ref (training shapes) worst relative error: forward " << worst_fwd << ", backward " << worst_bwd);
 }
 
 TEST_CASE("adam: reference matches a hand-computed two-step example") {
