@@ -362,6 +362,7 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
 
   const std::string title = "Test PSNR vs training time: " + fs::path(absolute_path(a.dataset)).filename().string();
   Progress progress = a.resume ? load_progress(a.out, trainer.iteration()) : Progress{};
+  const int resumed_from = a.resume ? trainer.iteration() : -1;
   const bool have_test = !test_views.empty();
   if (!have_test && !a.quiet) std::fprintf(stderr, "note: the dataset has no test views; nothing is evaluated\n");
   const gs::metrics::LpipsAlex* net = lpips->get();
@@ -492,8 +493,9 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
   for (const gs::model::ViewMetrics& v : final_eval.views) s.mean_gaussians += double(v.gaussians);
   if (!final_eval.views.empty()) s.mean_gaussians /= double(final_eval.views.size());
 
-  std::printf("hbgs train: %d iterations in %.1f s (median %.1f ms per iteration), %zu anchors, ISA %s, %d threads\n",
-              s.iterations, s.train_seconds, s.median_iteration_ms, s.anchors, s.isa.c_str(), s.threads);
+  std::printf("hbgs train: %d iterations in %.1f s (median %.1f ms per iteration), %zu anchors, ISA %s, %d threads%s\n",
+              s.iterations, s.train_seconds, s.median_iteration_ms, s.anchors, s.isa.c_str(), s.threads,
+              resumed_from >= 0 ? (" (resumed at iteration " + std::to_string(resumed_from) + ")").c_str() : "");
   if (have_test) {
     std::printf("  test (%zu views): PSNR %.2f dB, SSIM %.4f", s.test_views, final_eval.psnr, final_eval.ssim);
     if (final_eval.lpips >= 0) std::printf(", %s %.4f", gs::metrics::LpipsAlex::kLabel, final_eval.lpips);

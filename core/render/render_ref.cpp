@@ -62,7 +62,10 @@ Forward<T> render_fwd(const Scene<T>& s, const View<T>& v) {
     sig = mix(sig, uint64_t(f.radii[i] > 0));
     if (f.radii[i] == 0) continue;
     int32_t r[4];
-    simd::tile_rect(&p, &f.means2d[2 * i], f.radii[i], r);
+    float support[3];
+    const float conic[3] = {float(f.conics[3 * i]), float(f.conics[3 * i + 1]), float(f.conics[3 * i + 2])};
+    simd::splat_support(conic, float(s.opacities[i]), support);
+    simd::tile_rect_supported(&p, &f.means2d[2 * i], f.radii[i], support, r);
     for (int k = 0; k < 4; ++k) sig = mix(sig, uint64_t(r[k]));
     for (int ty = r[1]; ty < r[3]; ++ty)
       for (int tx = r[0]; tx < r[2]; ++tx) isects.push_back({ty * p.tiles_x + tx, f.depths[i], uint32_t(i)});

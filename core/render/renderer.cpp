@@ -306,7 +306,6 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
     // record per intersection instead of gathering six arrays at random.
     for (size_t i = b; i < e; ++i) {
       if (m.radii[i] == 0) continue;
-      simd::tile_rect(&pp, m.means2d + 2 * i, m.radii[i], m.rects + 4 * i);
       float* s = m.records + i * simd::kSplatStride;
       s[simd::kSplatMx] = m.means2d[2 * i];
       s[simd::kSplatMy] = m.means2d[2 * i + 1];
@@ -319,6 +318,7 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
       s[simd::kSplatBlue] = colors[3 * i + 2];
       s[simd::kSplatDepth] = m.depths[i];
       simd::splat_support(m.conics + 3 * i, params.opacities[i], s + simd::kSplatTwoTau);
+      simd::tile_rect_supported(&pp, m.means2d + 2 * i, m.radii[i], s + simd::kSplatTwoTau, m.rects + 4 * i);
     }
   };
   run_parallel(m.pool, n, kProjectGrain, project);

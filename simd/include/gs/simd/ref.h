@@ -63,6 +63,32 @@ inline int32_t tile_rect(const ProjectParamsT<T>* p, const T* mean2d, int32_t ra
   return (rect[2] - rect[0]) * (rect[3] - rect[1]);
 }
 
+// The tiles a splat is binned to: its 3-sigma tile_rect narrowed to the tiles that hold a pixel
+// inside its alpha >= 1/255 support box (support = [two_tau, ext_x, ext_y], splat_support). Exact
+// with respect to the image: a pixel outside that box gets alpha < 1/255 and is skipped by every
+// tile kernel, so dropping tiles that hold only such pixels changes no output value, only the
+// per-tile lists (fewer intersections to sort and blend). Widened by half a pixel against rounding.
+template <class T>
+inline int32_t tile_rect_supported(const ProjectParamsT<T>* p, const T* mean2d, int32_t radius, const float* support,
+                                   int32_t rect[4]) {
+  tile_rect(p, mean2d, radius, rect);
+  const double ext[2] = {double(support[1]), double(support[2])};
+  if (!(ext[0] >= 0.0) || !(ext[1] >= 0.0)) {
+    rect[2] = rect[0];  // no pixel reaches 1/255: an empty rect
+    rect[3] = rect[1];
+    return 0;
+  }
+  for (int axis = 0; axis < 2; ++axis) {
+    if (!(ext[axis] < 1e6)) continue;  // unbounded support: keep the 3-sigma rect
+    const double centre = double(mean2d[axis]) - 0.5;  // in pixel-index units
+    const double lo = std::floor((centre - ext[axis] - 0.5) / kTileSize);
+    const double hi = std::floor((centre + ext[axis] + 0.5) / kTileSize) + 1;
+    if (lo > double(rect[axis])) rect[axis] = int32_t(std::min(lo, double(rect[axis + 2])));
+    if (hi < double(rect[axis + 2])) rect[axis + 2] = int32_t(std::max(hi, double(rect[axis])));
+  }
+  return (rect[2] - rect[0]) * (rect[3] - rect[1]);
+}
+
 // One splat evaluated at a pixel centre (px, py): offsets, Gaussian falloff G and alpha.
 template <class T>
 struct SplatEval {
