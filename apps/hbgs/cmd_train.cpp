@@ -306,6 +306,10 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
   if (a.resume) {
     if (!gs::platform::file_exists(ckpt)) return fail(kCmd, "nothing to resume: " + ckpt + " not found");
     if (gs::Status st = apply_recorded_options(a.out, &a); !st.ok()) return fail(kCmd, "--resume: " + st.to_string());
+    // A run killed while writing leaves its atomic-write temporaries ("<file>.tmp.<pid>"); the
+    // real files are intact (renamed only when complete), so the leftovers are simply removed.
+    for (const fs::directory_entry& e : fs::directory_iterator(a.out, ec))
+      if (e.path().filename().string().find(".tmp.") != std::string::npos) fs::remove(e.path(), ec);
   } else if (!previous.empty() && !a.force) {
     return fail(kCmd, a.out + " already holds a run (" + previous.front().string() +
                           " exists); pass --force to overwrite it or --resume to continue it");
