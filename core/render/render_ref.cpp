@@ -68,7 +68,11 @@ Forward<T> render_fwd(const Scene<T>& s, const View<T>& v) {
     simd::tile_rect_supported(&p, &f.means2d[2 * i], f.radii[i], support, r);
     for (int k = 0; k < 4; ++k) sig = mix(sig, uint64_t(r[k]));
     for (int ty = r[1]; ty < r[3]; ++ty)
-      for (int tx = r[0]; tx < r[2]; ++tx) isects.push_back({ty * p.tiles_x + tx, f.depths[i], uint32_t(i)});
+      for (int tx = r[0]; tx < r[2]; ++tx)
+        if (simd::splat_reaches_tile(&f.means2d[2 * i], &f.conics[3 * i], support[0], tx, ty, p.width, p.height)) {
+          isects.push_back({ty * p.tiles_x + tx, f.depths[i], uint32_t(i)});
+          sig = mix(sig, uint64_t(ty * p.tiles_x + tx));
+        }
   }
   std::sort(isects.begin(), isects.end(), [](const Isect& a, const Isect& b) {
     if (a.tile != b.tile) return a.tile < b.tile;

@@ -331,9 +331,13 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
     if (m.radii[i] == 0) continue;
     ++visible;
     const int32_t* r = m.rects + 4 * i;
-    total += uint64_t(r[2] - r[0]) * uint64_t(r[3] - r[1]);
+    const float two_tau = m.records[i * simd::kSplatStride + simd::kSplatTwoTau];
     for (int ty = r[1]; ty < r[3]; ++ty)
-      for (int tx = r[0]; tx < r[2]; ++tx) ++m.tile_offsets[ty * pp.tiles_x + tx + 1];
+      for (int tx = r[0]; tx < r[2]; ++tx)
+        if (simd::splat_reaches_tile(m.means2d + 2 * i, m.conics + 3 * i, two_tau, tx, ty, pp.width, pp.height)) {
+          ++m.tile_offsets[ty * pp.tiles_x + tx + 1];
+          ++total;
+        }
   }
   stats_.visible = visible;
   stats_.isects = size_t(std::min<uint64_t>(total, SIZE_MAX));
@@ -348,8 +352,11 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
     std::memcpy(&depth_bits, m.depths + i, 4);  // depth > near plane > 0: float bits are monotonic
     const uint64_t key = (uint64_t(depth_bits) << 32) | uint64_t(i);
     const int32_t* r = m.rects + 4 * i;
+    const float two_tau = m.records[i * simd::kSplatStride + simd::kSplatTwoTau];
     for (int ty = r[1]; ty < r[3]; ++ty)
-      for (int tx = r[0]; tx < r[2]; ++tx) m.keys[m.tile_cursor[ty * pp.tiles_x + tx]++] = key;
+      for (int tx = r[0]; tx < r[2]; ++tx)
+        if (simd::splat_reaches_tile(m.means2d + 2 * i, m.conics + 3 * i, two_tau, tx, ty, pp.width, pp.height))
+          m.keys[m.tile_cursor[ty * pp.tiles_x + tx]++] = key;
   }
   m.num_isects = size_t(total);
 

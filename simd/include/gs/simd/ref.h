@@ -4,6 +4,7 @@
 // double-precision forward the finite-difference gradient checks differentiate.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -61,6 +62,32 @@ inline int32_t tile_rect(const ProjectParamsT<T>* p, const T* mean2d, int32_t ra
   rect[2] = clampi((px + r + T(ts - 1)) / T(ts), p->tiles_x);
   rect[3] = clampi((py + r + T(ts - 1)) / T(ts), p->tiles_y);
   return (rect[2] - rect[0]) * (rect[3] - rect[1]);
+}
+
+// True if the splat can reach alpha >= 1/255 at some pixel centre of tile (tx, ty): the minimum of
+// its quadratic form q(u) = a ux^2 + 2 b ux uy + c uy^2 (power = -q / 2, u = pixel - mean) over the
+// rectangle spanned by the tile's pixel centres (clipped to the image) against two_tau = 2 ln(255 o).
+// Exact like tile_rect_supported (a skipped tile holds only pixels the kernels would skip), with a
+// relative margin of 1e-3 against float rounding; a conic that is not positive definite reaches
+// every tile of its rect.
+template <class T>
+inline bool splat_reaches_tile(const T* mean2d, const T* conic, float two_tau, int32_t tx, int32_t ty, int32_t width,
+                               int32_t height) {
+  const double a = double(conic[0]), b = double(conic[1]), c = double(conic[2]);
+  if (!(a > 0.0) || !(c > 0.0) || !(a * c - b * b > 0.0)) return true;
+  const double limit = double(two_tau) * 1.001 + 1e-3;
+  const double x0 = tx * kTileSize + 0.5 - double(mean2d[0]);
+  const double x1 = double(std::min((tx + 1) * kTileSize, width)) - 0.5 - double(mean2d[0]);
+  const double y0 = ty * kTileSize + 0.5 - double(mean2d[1]);
+  const double y1 = double(std::min((ty + 1) * kTileSize, height)) - 0.5 - double(mean2d[1]);
+  if (x0 <= 0.0 && 0.0 <= x1 && y0 <= 0.0 && 0.0 <= y1) return limit >= 0.0;
+  auto clampd = [](double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); };
+  auto q = [&](double ux, double uy) { return a * ux * ux + 2.0 * b * ux * uy + c * uy * uy; };
+  double qmin = q(x0, clampd(-b * x0 / c, y0, y1));
+  qmin = std::min(qmin, q(x1, clampd(-b * x1 / c, y0, y1)));
+  qmin = std::min(qmin, q(clampd(-b * y0 / a, x0, x1), y0));
+  qmin = std::min(qmin, q(clampd(-b * y1 / a, x0, x1), y1));
+  return qmin <= limit;
 }
 
 // The tiles a splat is binned to: its 3-sigma tile_rect narrowed to the tiles that hold a pixel
