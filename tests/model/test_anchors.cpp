@@ -12,22 +12,17 @@
 
 #include "gs/io/colmap.h"
 #include "gs/model/anchors.h"
+#include "support/model_fixtures.h"
 
 namespace gs::model {
 namespace {
 
-// n points [n, 3] on a noisy sphere of radius 2 centred at (0.3, -0.1, 0.7): surface-like, like SfM.
+// SfM-like points around (0.3, -0.1, 0.7).
 std::vector<float> sphere_points(size_t n, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> g(0.0f, 1.0f);
-  std::vector<float> xyz(3 * n);
-  for (size_t i = 0; i < n; ++i) {
-    float v[3] = {g(rng), g(rng), g(rng)};
-    const float r = 2.0f * (1.0f + 0.02f * g(rng)) / std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + 1e-12f);
-    xyz[3 * i] = 0.3f + v[0] * r, xyz[3 * i + 1] = -0.1f + v[1] * r, xyz[3 * i + 2] = 0.7f + v[2] * r;
-  }
-  return xyz;
+  const float centre[3] = {0.3f, -0.1f, 0.7f};
+  return test::sphere_points(n, seed, centre);
 }
+
 
 TEST_CASE("voxelise: the anchor is the point closest to the voxel centroid") {
   // eps = 1, dyadic coordinates so every distance is exact. Voxel (0,0,0): points 0..3, centroid

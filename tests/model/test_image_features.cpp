@@ -18,34 +18,17 @@
 #include "gs/model/image_features.h"
 #include "gs/platform/thread_pool.h"
 #include "support/alloc_counter.h"
+#include "support/model_fixtures.h"
 
 namespace gs::model {
 namespace {
 
 constexpr int kW = 64, kH = 48;  // multiples of 4: levels 1 and 2 are exact 2x2 reductions
 
-// World-to-camera pose of a camera at centre C looking at `at` (y down roughly along -world y).
 Camera look_at(const double C[3], const double at[3], float fx, float cx, float cy) {
-  double z[3] = {at[0] - C[0], at[1] - C[1], at[2] - C[2]};
-  const double zn = std::sqrt(z[0] * z[0] + z[1] * z[1] + z[2] * z[2]);
-  for (double& v : z) v /= zn;
-  const double up[3] = {0, -1, 0};
-  // x = z x up, y = z x x: a right-handed frame (x right, y down, z forward); A gets R = I.
-  double x[3] = {z[1] * up[2] - z[2] * up[1], z[2] * up[0] - z[0] * up[2], z[0] * up[1] - z[1] * up[0]};
-  const double xn = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
-  for (double& v : x) v /= xn;
-  const double y[3] = {z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]};
-  Camera cam;
-  cam.intr = {fx, fx, cx, cy, kW, kH};
-  for (int c = 0; c < 3; ++c) {
-    cam.pose.R[c] = float(x[c]);
-    cam.pose.R[3 + c] = float(y[c]);
-    cam.pose.R[6 + c] = float(z[c]);
-  }
-  for (int r = 0; r < 3; ++r)
-    cam.pose.t[r] = float(-(double(cam.pose.R[3 * r]) * C[0] + double(cam.pose.R[3 * r + 1]) * C[1] + double(cam.pose.R[3 * r + 2]) * C[2]));
-  return cam;
+  return test::look_at(C, at, PinholeIntrinsics{fx, fx, cx, cy, kW, kH});
 }
+
 
 // Colour of view v at pixel (x, y): a strongly varying but known pattern.
 uint8_t texel(int v, int x, int y, int c) { return uint8_t((x * (37 + 5 * c) + y * (11 + 7 * c) + 29 * v + x * y * (c + 1)) % 256); }

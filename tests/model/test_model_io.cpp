@@ -16,22 +16,15 @@
 
 #include "gs/model/hybrid_model.h"
 #include "support/temp_dir.h"
+#include "support/model_fixtures.h"
 
 namespace gs::model {
 namespace {
 
-// n points on a noisy sphere of radius 2 (SfM-like surface samples).
-std::vector<float> sphere_points(size_t n, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> g(0.0f, 1.0f);
-  std::vector<float> xyz(3 * n);
-  for (size_t i = 0; i < n; ++i) {
-    float v[3] = {g(rng), g(rng), g(rng)};
-    const float r = 2.0f * (1.0f + 0.02f * g(rng)) / std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + 1e-12f);
-    for (int c = 0; c < 3; ++c) xyz[3 * i + size_t(c)] = v[c] * r;
-  }
-  return xyz;
-}
+using test::read_bytes;
+using test::sphere_points;
+using test::write_bytes;
+
 
 ModelConfig small_config(ImageFeatureMode mode) {
   ModelConfig c;
@@ -102,15 +95,7 @@ void check_identical(const HybridModel& a, const HybridModel& b) {
   }
 }
 
-std::vector<uint8_t> read_bytes(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  return std::vector<uint8_t>(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
-}
 
-void write_bytes(const std::string& path, const std::vector<uint8_t>& b) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  f.write(reinterpret_cast<const char*>(b.data()), std::streamsize(b.size()));
-}
 
 TEST_CASE("model: create_model shapes initialisation budget and determinism") {
   for (ImageFeatureMode mode : {ImageFeatureMode::kPaper, ImageFeatureMode::kNone}) {

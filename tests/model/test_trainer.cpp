@@ -34,28 +34,20 @@
 #include "gs/render.h"
 #include "support/alloc_counter.h"
 #include "support/temp_dir.h"
+#include "support/model_fixtures.h"
 
 namespace gs::model {
 namespace {
 
 constexpr int kW = 64, kH = 48, kViews = 8;
 
+using test::read_bytes;
+using test::write_bytes;
+
 Camera look_at(const double C[3], const double at[3]) {
-  double z[3] = {at[0] - C[0], at[1] - C[1], at[2] - C[2]};
-  const double zn = std::sqrt(z[0] * z[0] + z[1] * z[1] + z[2] * z[2]);
-  for (double& v : z) v /= zn;
-  const double up[3] = {0, -1, 0};
-  double x[3] = {z[1] * up[2] - z[2] * up[1], z[2] * up[0] - z[0] * up[2], z[0] * up[1] - z[1] * up[0]};
-  const double xn = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
-  for (double& v : x) v /= xn;
-  const double y[3] = {z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]};
-  Camera cam;
-  cam.intr = {58, 58, 0.5f * kW + 0.7f, 0.5f * kH - 0.4f, kW, kH};
-  for (int c = 0; c < 3; ++c) cam.pose.R[c] = float(x[c]), cam.pose.R[3 + c] = float(y[c]), cam.pose.R[6 + c] = float(z[c]);
-  for (int r = 0; r < 3; ++r)
-    cam.pose.t[r] = float(-(double(cam.pose.R[3 * r]) * C[0] + double(cam.pose.R[3 * r + 1]) * C[1] + double(cam.pose.R[3 * r + 2]) * C[2]));
-  return cam;
+  return test::look_at(C, at, PinholeIntrinsics{58, 58, 0.5f * kW + 0.7f, 0.5f * kH - 0.4f, kW, kH});
 }
+
 
 // The dataset: views around a random cloud of coloured Gaussians, and points sampled from it.
 struct Scene {
@@ -170,15 +162,7 @@ std::unique_ptr<Trainer> make_trainer(HybridModel model, const TrainOptions& o, 
   return std::move(*t);
 }
 
-std::vector<uint8_t> read_bytes(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  return std::vector<uint8_t>(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
-}
 
-void write_bytes(const std::string& path, const std::vector<uint8_t>& b) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  f.write(reinterpret_cast<const char*>(b.data()), std::streamsize(b.size()));
-}
 
 TEST_CASE("trainer: the loss falls over 200 iterations") {
   auto t = make_trainer(initial_model(config()), quiet_options(200), nullptr);
