@@ -225,7 +225,8 @@ Expected<HybridModel> deserialize_model(const uint8_t* data, size_t size, const 
   const size_t body = r.offset();
   const uint64_t checksum = r.u64("the checksum");
   if (!r.status().ok()) return r.status();
-  if (checksum != detail::fnv1a64(data, body))
+  // A whole file was verified up front; an embedded model (consumed != null) is verified here.
+  if (consumed && checksum != detail::fnv1a64(data, body))
     return parse_error(source + ": checksum mismatch (the file is corrupt)");
   for (float v : m.positions)
     if (!std::isfinite(v)) return parse_error(source + ": non-finite anchor position");

@@ -135,7 +135,7 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   if (a.count > ws.capacity) return capacity_exceeded("training step: more anchors than the workspace plan");
   const int W = cam.intr.width, H = cam.intr.height;
   if (size_t(W) * size_t(H) * 3 > ws.rgb.size()) return capacity_exceeded("training step: image larger than planned");
-  const int G = p.image_feature_dim, F = a.feature_dim, k = a.k;
+  const int G = p.image_feature_dim, F = a.feature_dim;
   const simd::MlpShape* sh = p.shapes;
   const size_t D = size_t(sh[kMlpOpacity].in);
 
@@ -188,7 +188,6 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
     be.mlp_bwd(sh[kMlpImage], int32_t(V), ws.raw.data(), p.mlp[kMlpImage], ws.img_hidden.data(), ws.g.data(),
                ws.v_g.data(), static_cast<T*>(nullptr), grads->mlp[kMlpImage]);
   }
-  (void)k;
   return Status::Ok();
 }
 
