@@ -179,10 +179,42 @@ Grads<T> render_bwd(const Scene<T>& s, const View<T>& v, const Forward<T>& f, co
   return g;
 }
 
+template <class T>
+std::vector<T> render_pose_jacobian(const Scene<T>& s, const View<T>& v, const Forward<T>& f) {
+  const size_t n = s.n;
+  const simd::ProjectParamsT<T> p = project_params(v);
+  std::vector<T> d_means2d(12 * n), d_conics(18 * n);
+  simd::project_pose_tangents_ref<T>(&p, n, s.means.data(), s.log_scales.data(), s.quats.data(), f.radii.data(),
+                                     d_means2d.data(), d_conics.data());
+  // Per-intersection tangent records [isects, 5, 6] in the tile lists' order.
+  std::vector<T> tangents(f.tile_ids.size() * 30);
+  for (size_t k = 0; k < f.tile_ids.size(); ++k) {
+    const uint32_t g = f.tile_ids[k];
+    std::copy(&d_means2d[12 * g], &d_means2d[12 * g] + 12, &tangents[30 * k]);
+    std::copy(&d_conics[18 * g], &d_conics[18 * g] + 18, &tangents[30 * k + 12]);
+  }
+  simd::RasterParamsT<T> rp{};
+  rp.width = v.width; rp.height = v.height;
+  std::copy(v.background, v.background + 3, rp.background);
+  std::vector<T> jac(size_t(v.width) * v.height * 18, T(0));
+  const int tiles = p.tiles_x * p.tiles_y;
+  for (int t = 0; t < tiles; ++t) {
+    const uint32_t b = f.tile_offsets[t], e = f.tile_offsets[t + 1];
+    simd::raster_pose_jacobian_tile_ref<T>(&rp, t % p.tiles_x, t / p.tiles_x,
+                                           f.splats.data() + size_t(b) * simd::kSplatStride,
+                                           tangents.data() + size_t(b) * 30, int32_t(e - b), jac.data());
+  }
+  return jac;
+}
+
 template Forward<float> render_fwd<float>(const Scene<float>&, const View<float>&);
 template Forward<double> render_fwd<double>(const Scene<double>&, const View<double>&);
 template Grads<float> render_bwd<float>(const Scene<float>&, const View<float>&, const Forward<float>&, const float*);
 template Grads<double> render_bwd<double>(const Scene<double>&, const View<double>&, const Forward<double>&,
                                           const double*);
+
+template std::vector<float> render_pose_jacobian<float>(const Scene<float>&, const View<float>&, const Forward<float>&);
+template std::vector<double> render_pose_jacobian<double>(const Scene<double>&, const View<double>&,
+                                                          const Forward<double>&);
 
 }  // namespace gs::ref

@@ -3,6 +3,8 @@
 // bin (count -> scan -> emit keys) -> per tile: sort by depth, pack records, blend (SIMD, parallel
 // over tiles). Backward: per-tile blend backward into per-intersection gradients, a fixed-order
 // reduction to Gaussians, projection backward (parallel, pose gradient summed per chunk in order).
+// Pose normal equations: forward-mode twist tangents per Gaussian (parallel), then per tile the
+// tangents carried through blending into per-tile J^T W J / J^T W r slots, summed in tile order.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -21,6 +23,9 @@ namespace {
 constexpr size_t kArenaAlign = 64;
 constexpr size_t kExtraBytes = 64;       // over-read pad after every buffer (GS_EXTRA_BYTES)
 constexpr size_t kProjectGrain = 1024;   // Gaussians per projection chunk
+// Per-tile slot of the pose normal equations (doubles): [0, 21) upper triangle of J^T W J row by
+// row, [21, 27) J^T W r, 27 cost, 28 weight sum, 29 pixel count; padded to 32.
+constexpr int kPoseSlot = 32;
 
 // Carves typed buffers out of one block; with base == nullptr it only counts (the dry run).
 class Carver {
@@ -98,6 +103,9 @@ struct Renderer::Impl {
   float *acc_means2d, *acc_conics, *acc_opacities, *acc_colors;
   float *scratch_v_means, *scratch_v_log_scales, *scratch_v_quats;
   double* chunk_pose;  // [chunks, 6]
+  float* pose_d_means2d;  // [N, 2, 6] forward-mode twist tangents of mean2d (pose normal equations)
+  float* pose_d_conics;   // [N, 3, 6] ... and of the conic
+  double* pose_slots;     // [tiles, kPoseSlot] per-tile normal equations
   // per tile
   uint32_t *tile_offsets, *tile_cursor;  // [tiles + 1]
   // per intersection
@@ -116,6 +124,7 @@ struct Renderer::Impl {
   size_t num_isects = 0;
   int tiles = 0;
   float campos[3];
+  bool forward_ok = false;  // the last forward() completed (pose_normal_equations needs its state)
 
   void carve(Carver& c, const RenderCapacity& cap) {
     const uint64_t G = cap.max_gaussians, I = cap.max_isects, P = uint64_t(cap.max_width) * uint64_t(cap.max_height);
@@ -144,6 +153,87 @@ struct Renderer::Impl {
     v_splats = c.take<float>(I * simd::kSplatStride);
     final_T = c.take<float>(P);
     last = c.take<int32_t>(P);
+    pose_d_means2d = c.take<float>(G * 12);
+    pose_d_conics = c.take<float>(G * 18);
+    pose_slots = c.take<double>(tiles_max * kPoseSlot);
+  }
+
+  // One tile of the pose normal equations (see Renderer::pose_normal_equations): re-blends the
+  // forward's records front to back up to each pixel's last contributor, carrying the six twist
+  // tangents (the scalar twin of simd::raster_pose_jacobian_tile_ref, with the forward's stored
+  // last contributor as the early stop), and accumulates w J^T J, w J^T r in double into slot.
+  void pose_tile(int tile, const float* target, const float* mask, float huber_delta, float* out_jacobian,
+                 double* slot) const {
+    double acc[kPoseSlot] = {};
+    uint32_t begin, end;
+    tile_range(tile, &begin, &end);
+    const int x0 = (tile % pp.tiles_x) * simd::kTileSize, y0 = (tile / pp.tiles_x) * simd::kTileSize;
+    const int x1 = std::min(x0 + simd::kTileSize, pp.width), y1 = std::min(y0 + simd::kTileSize, pp.height);
+    const float* bg = rp.background;
+    for (int y = y0; y < y1; ++y) {
+      for (int x = x0; x < x1; ++x) {
+        const size_t pix = size_t(y) * size_t(pp.width) + size_t(x);
+        const bool use = !mask || mask[pix] != 0.0f;
+        if (!use && !out_jacobian) continue;
+        const float px = float(x) + 0.5f, py = float(y) + 0.5f;
+        float trans = 1.0f, rgb[3] = {0, 0, 0};
+        float d_trans[6] = {0, 0, 0, 0, 0, 0};
+        float d_rgb[18] = {};
+        const uint32_t stop = std::min(end, begin + uint32_t(last[pix]));
+        for (uint32_t k = begin; k < stop; ++k) {
+          const float* s = splats + size_t(k) * simd::kSplatStride;
+          // Cheap reject before the exp: power clearly below -two_tau / 2 means alpha < 1/255 (the
+          // margin of splat_reaches_tile keeps this from ever overruling eval_splat_ref).
+          const float ox = s[simd::kSplatMx] - px, oy = s[simd::kSplatMy] - py;
+          const float q = s[simd::kSplatA] * ox * ox + s[simd::kSplatC] * oy * oy + 2.0f * s[simd::kSplatB] * ox * oy;
+          if (q > s[simd::kSplatTwoTau] * 1.001f + 2e-3f) continue;
+          simd::SplatEval<float> e;
+          if (!simd::eval_splat_ref(s, px, py, &e)) continue;
+          const size_t g = size_t(uint32_t(keys[k]));
+          const float* dm = pose_d_means2d + 12 * g;
+          const float* dq = pose_d_conics + 18 * g;
+          float d_alpha[6] = {0, 0, 0, 0, 0, 0};
+          if (!e.clamped) {
+            const float g_mx = -(s[simd::kSplatA] * e.dx + s[simd::kSplatB] * e.dy);
+            const float g_my = -(s[simd::kSplatC] * e.dy + s[simd::kSplatB] * e.dx);
+            const float g_a = -0.5f * e.dx * e.dx, g_b = -e.dx * e.dy, g_c = -0.5f * e.dy * e.dy;
+            for (int q = 0; q < 6; ++q)
+              d_alpha[q] = e.alpha * (g_mx * dm[q] + g_my * dm[6 + q] + g_a * dq[q] + g_b * dq[6 + q] + g_c * dq[12 + q]);
+          }
+          const float w = e.alpha * trans;
+          for (int c = 0; c < 3; ++c) {
+            const float col = s[simd::kSplatR + c];
+            rgb[c] += col * w;
+            for (int q = 0; q < 6; ++q) d_rgb[c * 6 + q] += col * (d_alpha[q] * trans + e.alpha * d_trans[q]);
+          }
+          for (int q = 0; q < 6; ++q) d_trans[q] = d_trans[q] * (1.0f - e.alpha) - trans * d_alpha[q];
+          trans *= 1.0f - e.alpha;
+        }
+        float J[18], r[3];
+        for (int c = 0; c < 3; ++c) {
+          r[c] = rgb[c] + trans * bg[c] - target[3 * pix + c];
+          for (int q = 0; q < 6; ++q) J[c * 6 + q] = d_rgb[c * 6 + q] + bg[c] * d_trans[q];
+        }
+        if (out_jacobian) std::memcpy(out_jacobian + 18 * pix, J, sizeof(J));
+        if (!use) continue;
+        const double r2 = double(r[0]) * r[0] + double(r[1]) * r[1] + double(r[2]) * r[2];
+        double w = 1.0;
+        if (huber_delta > 0.0f) {
+          const double rn = std::sqrt(r2);
+          if (rn > double(huber_delta)) w = double(huber_delta) / rn;
+        }
+        int idx = 0;
+        for (int i = 0; i < 6; ++i)
+          for (int j = i; j < 6; ++j)
+            acc[idx++] += w * (double(J[i]) * J[j] + double(J[6 + i]) * J[6 + j] + double(J[12 + i]) * J[12 + j]);
+        for (int i = 0; i < 6; ++i)
+          acc[21 + i] += w * (double(J[i]) * r[0] + double(J[6 + i]) * r[1] + double(J[12 + i]) * r[2]);
+        acc[27] += 0.5 * w * r2;
+        acc[28] += w;
+        acc[29] += 1.0;
+      }
+    }
+    std::memcpy(slot, acc, sizeof(acc));
   }
 
   void tile_range(int tile, uint32_t* begin, uint32_t* end) const {
@@ -262,6 +352,7 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
                          float* out_rgb, float* out_depth) {
   Impl& m = *impl_;
   if (!m.arena) return invalid_argument("Renderer::forward before init");
+  m.forward_ok = false;
   const int W = camera.intr.width, H = camera.intr.height;
   if (options.validate_inputs) {
     GS_RETURN_IF_ERROR(validate_camera(camera));
@@ -375,6 +466,7 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
     }
   };
   run_parallel(m.pool, size_t(m.tiles), 1, raster);
+  m.forward_ok = true;
   return Status::Ok();
 }
 
@@ -450,6 +542,49 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
   }
   if (grads->v_opacities) std::memcpy(grads->v_opacities, m.acc_opacities, sizeof(float) * n);
   if (grads->v_means2d) std::memcpy(grads->v_means2d, m.acc_means2d, sizeof(float) * 2 * n);
+  return Status::Ok();
+}
+
+Status Renderer::pose_normal_equations(const float* target, const float* mask, float huber_delta,
+                                       PoseNormalEquations* out, float* out_jacobian) {
+  Impl& m = *impl_;
+  if (!m.arena) return invalid_argument("Renderer::pose_normal_equations before init");
+  if (!m.forward_ok) return invalid_argument("Renderer::pose_normal_equations: no successful forward() to linearise");
+  if (!target || !out) return invalid_argument("Renderer::pose_normal_equations: null target or output");
+  if (std::isnan(huber_delta)) return invalid_argument("Renderer::pose_normal_equations: Huber delta is NaN");
+  const GaussianParams& params = m.params;
+  const size_t n = params.count;
+
+  // 1. Forward-mode twist tangents of every visible Gaussian's mean2d and conic (zero if culled).
+  auto tangents = [&](size_t b, size_t e, int) {
+    simd::project_pose_tangents_ref<float>(&m.pp, e - b, params.means + 3 * b, params.log_scales + 3 * b,
+                                           params.quats + 4 * b, m.radii + b, m.pose_d_means2d + 12 * b,
+                                           m.pose_d_conics + 18 * b);
+  };
+  run_parallel(m.pool, n, kProjectGrain, tangents);
+
+  // 2. Per tile: tangents through blending, normal equations into the tile's own slot.
+  auto tiles = [&](size_t b, size_t e, int) {
+    for (size_t tile = b; tile < e; ++tile)
+      m.pose_tile(int(tile), target, mask, huber_delta, out_jacobian, m.pose_slots + tile * kPoseSlot);
+  };
+  run_parallel(m.pool, size_t(m.tiles), 1, tiles);
+
+  // 3. Fixed-order reduction over tiles (independent of the thread count).
+  double acc[kPoseSlot] = {};
+  for (int tile = 0; tile < m.tiles; ++tile)
+    for (int q = 0; q < 30; ++q) acc[q] += m.pose_slots[size_t(tile) * kPoseSlot + q];
+  int idx = 0;
+  for (int i = 0; i < 6; ++i)
+    for (int j = i; j < 6; ++j) {
+      out->JtJ[i * 6 + j] = acc[idx];
+      out->JtJ[j * 6 + i] = acc[idx];
+      ++idx;
+    }
+  for (int i = 0; i < 6; ++i) out->Jtr[i] = acc[21 + i];
+  out->cost = acc[27];
+  out->weight_sum = acc[28];
+  out->pixels = size_t(acc[29]);
   return Status::Ok();
 }
 

@@ -211,6 +211,82 @@ void project_bwd_ref(const ProjectParamsT<T>* p, size_t n, const T* means, const
   }
 }
 
+template <class T>
+void project_pose_tangents_ref(const ProjectParamsT<T>* p, size_t n, const T* means, const T* log_scales,
+                               const T* quats, const int32_t* radii, T* d_means2d, T* d_conics) {
+  for (size_t i = 0; i < n; ++i) {
+    T* dmu = d_means2d + 12 * i;  // [2, 6]
+    T* dq = d_conics + 18 * i;    // [3, 6]
+    std::fill(dmu, dmu + 12, T(0));
+    std::fill(dq, dq + 18, T(0));
+    if (radii[i] == 0) continue;
+    const Projection<T> pr = project_one(p, means + 3 * i, log_scales + 3 * i, quats + 4 * i);
+    if (!pr.valid) continue;
+    const T x = pr.m[0], y = pr.m[1], z = pr.m[2];
+    const T z2 = z * z, z3 = z2 * z;
+    const T* J = pr.J;
+    const T* S = pr.cov_cam;
+    // Forward quantities of the clamped Jacobian (as in project_bwd_ref).
+    const T cxz = std::min(p->lim_x_pos, std::max(-p->lim_x_neg, x / z));
+    const T cyz = std::min(p->lim_y_pos, std::max(-p->lim_y_neg, y / z));
+    const T tx = z * cxz, ty = z * cyz;
+    T JS[6];  // J S
+    for (int r = 0; r < 2; ++r)
+      for (int c = 0; c < 3; ++c) JS[r * 3 + c] = J[r * 3] * S[c] + J[r * 3 + 1] * S[3 + c] + J[r * 3 + 2] * S[6 + c];
+    // Q = conic as a symmetric matrix [[q0, q1], [q1, q2]].
+    const T inv_det = T(1) / pr.det;
+    const T q0 = pr.c * inv_det, q1 = -pr.b * inv_det, q2 = pr.a * inv_det;
+    for (int k = 0; k < 6; ++k) {
+      T dm[3] = {0, 0, 0}, dS[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+      if (k < 3) {
+        dm[k] = T(1);  // rho: the camera-space mean translates, the covariance does not change
+      } else {
+        T e[3] = {0, 0, 0};
+        e[k - 3] = T(1);
+        const T* m = pr.m;
+        dm[0] = e[1] * m[2] - e[2] * m[1];  // phi x m
+        dm[1] = e[2] * m[0] - e[0] * m[2];
+        dm[2] = e[0] * m[1] - e[1] * m[0];
+        const T K[9] = {0, -e[2], e[1], e[2], 0, -e[0], -e[1], e[0], 0};  // [phi]x
+        T KS[9], SK[9];
+        matmul3(K, S, KS);
+        matmul3(S, K, SK);
+        for (int q = 0; q < 9; ++q) dS[q] = KS[q] - SK[q];
+      }
+      // mean2d = (fx x/z + cx, fy y/z + cy)
+      dmu[0 * 6 + k] = p->fx * (dm[0] / z - x * dm[2] / z2);
+      dmu[1 * 6 + k] = p->fy * (dm[1] / z - y * dm[2] / z2);
+      // J = [[fx/z, 0, -fx tx/z^2], [0, fy/z, -fy ty/z^2]], tx = z clamp(x/z): dtx = dx unclamped,
+      // dtx = clamp(x/z) dz (the limit times dz) when clamped; likewise ty.
+      const T dtx = pr.clamp_x ? cxz * dm[2] : dm[0];
+      const T dty = pr.clamp_y ? cyz * dm[2] : dm[1];
+      const T dJ[6] = {-p->fx * dm[2] / z2, T(0), -p->fx * (dtx / z2 - 2 * tx * dm[2] / z3),
+                       T(0), -p->fy * dm[2] / z2, -p->fy * (dty / z2 - 2 * ty * dm[2] / z3)};
+      // cov2 = J S J^T + 0.3 I: dCov = dJ S J^T + J S dJ^T + J dS J^T.
+      T dJS[6], JdS[6];
+      for (int r = 0; r < 2; ++r)
+        for (int c = 0; c < 3; ++c) {
+          dJS[r * 3 + c] = dJ[r * 3] * S[c] + dJ[r * 3 + 1] * S[3 + c] + dJ[r * 3 + 2] * S[6 + c];
+          JdS[r * 3 + c] = J[r * 3] * dS[c] + J[r * 3 + 1] * dS[3 + c] + J[r * 3 + 2] * dS[6 + c];
+        }
+      T dC[4];
+      for (int r = 0; r < 2; ++r)
+        for (int c = 0; c < 2; ++c) {
+          T acc = 0;
+          for (int j = 0; j < 3; ++j)
+            acc += dJS[r * 3 + j] * J[c * 3 + j] + JS[r * 3 + j] * dJ[c * 3 + j] + JdS[r * 3 + j] * J[c * 3 + j];
+          dC[r * 2 + c] = acc;
+        }
+      // conic = Cov^-1: dQ = -Q dCov Q.
+      const T da = dC[0], db = T(0.5) * (dC[1] + dC[2]), dc = dC[3];
+      const T QD[4] = {q0 * da + q1 * db, q0 * db + q1 * dc, q1 * da + q2 * db, q1 * db + q2 * dc};
+      dq[0 * 6 + k] = -(QD[0] * q0 + QD[1] * q1);
+      dq[1 * 6 + k] = -(QD[0] * q1 + QD[1] * q2);
+      dq[2 * 6 + k] = -(QD[2] * q1 + QD[3] * q2);
+    }
+  }
+}
+
 template void project_fwd_ref<float>(const ProjectParamsT<float>*, size_t, const float*, const float*, const float*,
                                      float*, float*, float*, int32_t*);
 template void project_fwd_ref<double>(const ProjectParamsT<double>*, size_t, const double*, const double*,
@@ -221,5 +297,10 @@ template void project_bwd_ref<float>(const ProjectParamsT<float>*, size_t, const
 template void project_bwd_ref<double>(const ProjectParamsT<double>*, size_t, const double*, const double*,
                                       const double*, const int32_t*, const double*, const double*, const double*,
                                       double*, double*, double*, double*);
+
+template void project_pose_tangents_ref<float>(const ProjectParamsT<float>*, size_t, const float*, const float*,
+                                               const float*, const int32_t*, float*, float*);
+template void project_pose_tangents_ref<double>(const ProjectParamsT<double>*, size_t, const double*, const double*,
+                                                const double*, const int32_t*, double*, double*);
 
 }  // namespace gs::simd

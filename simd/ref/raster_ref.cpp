@@ -96,6 +96,45 @@ void raster_bwd_tile_ref(const RasterParamsT<T>* p, int32_t tile_x, int32_t tile
   }
 }
 
+template <class T>
+void raster_pose_jacobian_tile_ref(const RasterParamsT<T>* p, int32_t tile_x, int32_t tile_y, const T* splats,
+                                   const T* splat_tangents, int32_t count, T* out_jacobian) {
+  int32_t x0, y0, x1, y1;
+  tile_bounds(p, tile_x, tile_y, &x0, &y0, &x1, &y1);
+  for (int32_t y = y0; y < y1; ++y) {
+    for (int32_t x = x0; x < x1; ++x) {
+      const T px = T(x) + T(0.5), py = T(y) + T(0.5);
+      T trans = 1;
+      T d_trans[6] = {0, 0, 0, 0, 0, 0};
+      T d_rgb[3][6] = {};
+      for (int32_t i = 0; i < count; ++i) {
+        const T* s = splats + size_t(i) * kSplatStride;
+        const T* ds = splat_tangents + size_t(i) * 30;
+        SplatEval<T> e;
+        if (!eval_splat_ref(s, px, py, &e)) continue;
+        const T next_T = trans * (T(1) - e.alpha);
+        if (next_T < T(kTransmittanceMin)) break;
+        // power = -0.5 (a dx^2 + c dy^2) - b dx dy, d = mean2d - pixel centre.
+        const T g_mx = -(s[kSplatA] * e.dx + s[kSplatB] * e.dy);
+        const T g_my = -(s[kSplatC] * e.dy + s[kSplatB] * e.dx);
+        const T g_a = T(-0.5) * e.dx * e.dx, g_b = -e.dx * e.dy, g_c = T(-0.5) * e.dy * e.dy;
+        T d_alpha[6] = {0, 0, 0, 0, 0, 0};
+        if (!e.clamped)
+          for (int k = 0; k < 6; ++k)
+            d_alpha[k] = e.alpha * (g_mx * ds[k] + g_my * ds[6 + k] + g_a * ds[12 + k] + g_b * ds[18 + k] +
+                                    g_c * ds[24 + k]);
+        for (int c = 0; c < 3; ++c)
+          for (int k = 0; k < 6; ++k) d_rgb[c][k] += s[kSplatR + c] * (d_alpha[k] * trans + e.alpha * d_trans[k]);
+        for (int k = 0; k < 6; ++k) d_trans[k] = d_trans[k] * (T(1) - e.alpha) - trans * d_alpha[k];
+        trans = next_T;
+      }
+      T* out = out_jacobian + (size_t(y) * p->width + x) * 18;
+      for (int c = 0; c < 3; ++c)
+        for (int k = 0; k < 6; ++k) out[c * 6 + k] = d_rgb[c][k] + p->background[c] * d_trans[k];
+    }
+  }
+}
+
 template void raster_fwd_tile_ref<float>(const RasterParamsT<float>*, int32_t, int32_t, const float*, int32_t, float*,
                                          float*, int32_t*, float*);
 template void raster_fwd_tile_ref<double>(const RasterParamsT<double>*, int32_t, int32_t, const double*, int32_t,
@@ -104,5 +143,10 @@ template void raster_bwd_tile_ref<float>(const RasterParamsT<float>*, int32_t, i
                                          const float*, const int32_t*, const float*, float*);
 template void raster_bwd_tile_ref<double>(const RasterParamsT<double>*, int32_t, int32_t, const double*, int32_t,
                                           const double*, const int32_t*, const double*, double*);
+
+template void raster_pose_jacobian_tile_ref<float>(const RasterParamsT<float>*, int32_t, int32_t, const float*,
+                                                   const float*, int32_t, float*);
+template void raster_pose_jacobian_tile_ref<double>(const RasterParamsT<double>*, int32_t, int32_t, const double*,
+                                                    const double*, int32_t, double*);
 
 }  // namespace gs::simd

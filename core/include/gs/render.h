@@ -64,6 +64,17 @@ struct RenderStats {
   size_t isects = 0;   // Gaussian-tile pairs
 };
 
+// Gauss-Newton normal equations of the photometric residual with respect to the camera pose, for
+// the last forward: J = d rgb / d xi per pixel and channel (xi = (rho, phi), the LEFT twist of
+// GaussianGrads::v_pose), r = rendered - target, w a per-pixel robust weight.
+struct PoseNormalEquations {
+  double JtJ[36];       // sum w J^T J, row-major 6x6, symmetric
+  double Jtr[6];        // sum w J^T r
+  double cost;          // 0.5 sum w |r|^2 (the IRLS-weighted cost at this linearisation point)
+  double weight_sum;    // sum of w over the pixels used
+  size_t pixels;        // pixels used (mask != 0)
+};
+
 class Renderer {
  public:
   Renderer();
@@ -85,6 +96,18 @@ class Renderer {
                  float* out_depth = nullptr);
   // Gradients of the last forward given v_rgb = dL/d(out_rgb) [H, W, 3].
   Status backward(const float* v_rgb, GaussianGrads* grads);
+
+  // Normal equations of the pose for the last forward (valid after a successful forward(), whose
+  // parameter arrays must still be unchanged, like backward()), by forward-mode differentiation: six twist tangents carried through projection and blending
+  // with the forward's skip / clamp / early-stop decisions. Colours and opacities are treated as
+  // pose-independent (SH colours stay those evaluated for the forward's view). Per pixel,
+  // r = rendered - target (3 channels; the rendered colour is recomputed from the forward's
+  // splats), w = 1 if |r|_2 <= huber_delta or huber_delta <= 0, else huber_delta / |r|_2; pixels
+  // with mask == 0 are skipped (mask [H, W] or nullptr = all). out_jacobian [H, W, 3, 6], if not
+  // null, receives J for every pixel (masked or not). Parallel over tiles with a fixed-order
+  // reduction: results do not depend on the thread count. Allocates nothing.
+  Status pose_normal_equations(const float* target /*[H, W, 3]*/, const float* mask, float huber_delta,
+                               PoseNormalEquations* out, float* out_jacobian = nullptr);
 
   const RenderStats& stats() const { return stats_; }
   // Per-pixel state of the last forward: final transmittance and 1 + index of the last contributor

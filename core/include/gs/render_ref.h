@@ -54,4 +54,13 @@ Forward<T> render_fwd(const Scene<T>& scene, const View<T>& view);
 template <class T>
 Grads<T> render_bwd(const Scene<T>& scene, const View<T>& view, const Forward<T>& fwd, const T* v_rgb);
 
+// Forward-mode pose Jacobian of the rendered image, [H, W, 3, 6]: d rgb / d xi for a LEFT twist
+// xi = (rho, phi) of the world-to-camera transform (T <- Exp(xi) T, the twist of Grads::v_pose), so
+// sum over pixels of J^T v_rgb equals render_bwd's v_pose for a colour scene. Colours and
+// opacities are held fixed: for an SH scene the colours are those evaluated at this view (the
+// view-direction dependence through the camera centre is ignored, unlike render_bwd). fwd must be
+// render_fwd(scene, view).
+template <class T>
+std::vector<T> render_pose_jacobian(const Scene<T>& scene, const View<T>& view, const Forward<T>& fwd);
+
 }  // namespace gs::ref

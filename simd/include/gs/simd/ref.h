@@ -44,6 +44,24 @@ void project_bwd_ref(const ProjectParamsT<T>* p, size_t n,
                      T* v_quats,          // [n, 4]
                      double* v_pose);     // [6] (rho, phi), accumulated
 
+// Forward-mode pose tangents of project_fwd_ref (ALGORITHM.md Part A item 14): for each of the six
+// unit twists xi_k = (rho, phi) of a LEFT perturbation of the world-to-camera transform
+// (T <- Exp(xi) T: camera mean m moves as dm = rho + phi x m, camera covariance S as
+// dS = [phi]x S - S [phi]x), the derivative of mean2d and of the conic (a, b, c), through exactly
+// the forward's EWA Jacobian (tan clamp included: a clamped x/z makes tx = z lim, so dtx = lim dz),
+// the 0.3 px^2 dilation and the 2x2 inversion (d conic = -Q dCov Q). Zero for culled Gaussians
+// (radii == 0). Index [i, r, k]: Gaussian i, output component r, twist k.
+template <class T>
+void project_pose_tangents_ref(const ProjectParamsT<T>* p, size_t n,
+                               // fwd inputs
+                               const T* means,        // [n, 3] world
+                               const T* log_scales,   // [n, 3]
+                               const T* quats,        // [n, 4]
+                               const int32_t* radii,  // [n] from project_fwd_ref, 0 = culled
+                               // tangent outputs
+                               T* d_means2d,          // [n, 2, 6] px per unit twist
+                               T* d_conics);          // [n, 3, 6]
+
 // Tile rectangle [x0, x1) x [y0, y1) in tiles covered by a projected Gaussian (3DGS getRect, with
 // the mean shifted by -0.5 px because hbgs puts pixel centres at +0.5). Returns the tile count.
 template <class T>
@@ -155,6 +173,21 @@ void raster_bwd_tile_ref(const RasterParamsT<T>* p, int32_t tile_x, int32_t tile
                          const T* final_T, const int32_t* last,
                          const T* v_rgb,  // [H, W, 3]
                          T* v_splats);
+
+// Forward-mode pose Jacobian of raster_fwd_tile_ref for one tile: the six twist tangents of each
+// record's mean2d and conic carried through front-to-back blending with the forward's exact skip
+// (alpha < 1/255, power > 0), clamp (alpha = 0.99 has zero tangent) and early-stop rules:
+//   dalpha_i = alpha_i dpower_i (0 if clamped), dT_{i+1} = dT_i (1 - alpha_i) - T_i dalpha_i,
+//   dC = sum_i c_i (dalpha_i T_i + alpha_i dT_i) + background dT_final.
+// Colours and opacities are pose-independent here. Writes the tile's pixels of out_jacobian.
+template <class T>
+void raster_pose_jacobian_tile_ref(const RasterParamsT<T>* p, int32_t tile_x, int32_t tile_y,
+                                   // fwd inputs
+                                   const T* splats,          // [count, kSplatStride] depth-sorted
+                                   const T* splat_tangents,  // [count, 5, 6]: mean2d x, y, conic a, b, c
+                                   int32_t count,
+                                   // tangent outputs
+                                   T* out_jacobian);         // [H, W, 3, 6] d rgb / d xi
 
 // Colour from spherical harmonics (3DGS convention: value + 0.5, clamped at 0 from below).
 // sh [n, K, 3] with K = (degree + 1)^2; campos = camera centre in world coordinates.
