@@ -23,6 +23,7 @@
 #include "gs/platform/thread_pool.h"
 #include "gs/simd/kernel_table.h"
 #include "model_run.h"
+#include "pose_cli.h"
 
 namespace hbgs::cli {
 namespace {
@@ -223,6 +224,11 @@ gs::Status apply_recorded_options(const std::string& run, TrainArgs* a) {
   take("max-gaussians", &a->max_gaussians, true);
   take("voxel-size", &a->voxel_size, true);
   take("seed", &a->seed, true);
+  take("pose-noise", &a->pose_noise, true);
+  take("pose-noise-on", &a->pose_noise_on, true);
+  take("optimize-poses", &a->optimize_poses, true);
+  take("coarse-levels", &a->coarse_levels, true);
+  take("pose-lr", &a->pose_lr, true);
   take("max-width", &a->max_width, true);
   take("iterations", &a->iterations, false);
   take("checkpoint-every", &a->checkpoint_every, false);
@@ -244,7 +250,10 @@ std::string run_json(const TrainArgs& a) {
                   {"voxel-size", a.voxel_size},         {"seed", a.seed},
                   {"max-width", a.max_width},           {"checkpoint-every", a.checkpoint_every},
                   {"eval-every", a.eval_every},         {"save-at", a.save_at},
-                  {"lpips-weights", a.lpips_weights},   {"threads", a.threads}};
+                  {"lpips-weights", a.lpips_weights},   {"threads", a.threads},
+                  {"pose-noise", a.pose_noise},         {"pose-noise-on", a.pose_noise_on},
+                  {"optimize-poses", a.optimize_poses}, {"coarse-levels", a.coarse_levels},
+                  {"pose-lr", a.pose_lr}};
   return j.dump(2) + "\n";
 }
 
@@ -321,15 +330,24 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
 
   gs::Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(a.dataset, a.max_width, "all");
   if (!data.ok()) return fail(kCmd, data.status().to_string());
-  const gs::io::Dataset& ds = (*data)->dataset;
+  gs::io::Dataset& ds = (*data)->dataset;
+  PoseTruth truth;
+  if (gs::Status st = apply_pose_noise(&ds, a.pose_noise, a.pose_noise_on, &truth); !st.ok()) return fail(kCmd, st.message());
   const size_t npoints = ds.points_xyz.size() / 3;
   if (npoints == 0)
     return fail(kCmd, a.dataset + ": the dataset has no SfM points (sparse/0/points3D); training places its anchors on them");
   std::vector<const gs::io::DatasetView*> train_views, test_views;
   std::vector<const gs::Camera*> train_cameras;
-  for (const gs::io::DatasetView& v : ds.views) {
+  std::vector<size_t> train_index;  // dataset index of each training view
+  std::vector<std::string> train_names;
+  for (size_t i = 0; i < ds.views.size(); ++i) {
+    const gs::io::DatasetView& v = ds.views[i];
     (v.is_test ? test_views : train_views).push_back(&v);
-    if (!v.is_test) train_cameras.push_back(&v.camera);
+    if (!v.is_test) {
+      train_cameras.push_back(&v.camera);
+      train_index.push_back(i);
+      train_names.push_back(v.name);
+    }
   }
   if (train_views.empty()) return fail(kCmd, a.dataset + ": no training views (every view is a test view)");
 
@@ -345,6 +363,10 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
   topt.iterations = a.iterations;
   topt.schedule_iterations = a.iterations;
   topt.seed = a.seed;
+  topt.optimize_poses = a.optimize_poses;
+  topt.coarse_levels = a.coarse_levels >= 0 ? a.coarse_levels : (a.optimize_poses ? 2 : 0);
+  topt.lr_pose_rotation_init = topt.lr_pose_translation_init = a.pose_lr;
+  if (a.optimize_poses) topt.image_feature_refresh = 250;  // features follow the moving poses
   gs::platform::ThreadPool pool(a.threads);
   gs::Expected<std::unique_ptr<gs::model::Trainer>> created =
       gs::model::Trainer::create(std::move(model).value(), train_views, topt, &pool);
@@ -355,6 +377,26 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
       return fail(kCmd, "cannot resume from " + ckpt + ": " + st.to_string());
   gs::Expected<std::unique_ptr<gs::metrics::LpipsAlex>> lpips = load_lpips(a.lpips_weights, a.threads, a.quiet);
   if (!lpips.ok()) return fail(kCmd, lpips.status().to_string());
+
+  // Training-pose errors against the true poses (Sim(3)-aligned on camera centres), input and current.
+  auto current_train_poses = [&] {
+    std::vector<gs::Pose> out;
+    for (const gs::Camera& c : trainer.cameras()) out.push_back(c.pose);
+    return out;
+  };
+  std::vector<gs::Pose> input_poses;
+  for (const gs::io::DatasetView* v : train_views) input_poses.push_back(v->camera.pose);
+  const gs::pose::PoseErrors input_errors = errors_for(input_poses, train_index, truth, true);
+  auto pose_json = [&] {
+    const std::vector<gs::Pose> now = current_train_poses();
+    return nlohmann::json{{"noise", a.pose_noise},
+                          {"noise_on", a.pose_noise_on},
+                          {"optimized", a.optimize_poses},
+                          {"scene_radius", truth.radius},
+                          {"train_input", pose_errors_json(input_errors, false)},
+                          {"train_final", pose_errors_json(errors_for(now, train_index, truth, true), true, train_names)},
+                          {"train_final_unaligned", pose_errors_json(errors_for(now, train_index, truth, false), false)}};
+  };
 
   // 2. The run folder.
   if (a.force)
@@ -414,6 +456,8 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
         {"isa", kernels.isa},
         {"threads", pool.num_threads()}};
     if (net) extra["lpips_backbone"] = gs::metrics::LpipsAlex::kLabel;
+    extra["test_poses"] = a.pose_noise_on == "train" ? "true (dataset) poses, not registered" : "noisy poses, not registered";
+    extra["poses"] = pose_json();
     GS_RETURN_IF_ERROR(write_eval_files(a.out, method, *r, json_members(extra.dump())));
     if (a.eval_every > 0) GS_RETURN_IF_ERROR(record_psnr(it, r->psnr));
     final_eval = std::move(r).value();
@@ -477,9 +521,14 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
   const std::string model_path = (fs::path(a.out) / kModelFile).string();
   gs::Status final_st = last_full == final_it ? gs::Status::Ok() : full_eval(final_it, model_file_for(final_it));
   if (final_st.ok() && model_file_for(final_it) != model_path) final_st = gs::model::save_model(trainer.model(), model_path);
+  if (final_st.ok() && a.optimize_poses)
+    final_st = write_posed_model(a.dataset, train_names, current_train_poses(), (fs::path(a.out) / "refined_poses").string());
   if (!final_st.ok()) return fail(kCmd, final_st.to_string());
 
   TrainSummary s;
+  s.have_pose_errors = true;
+  s.train_pose_input = input_errors;
+  s.train_pose_final = errors_for(current_train_poses(), train_index, truth, true);
   s.run_dir = a.out;
   s.image_features = gs::model::image_feature_mode_name(trainer.model().config.image_features);
   s.iterations = final_it;
@@ -508,6 +557,12 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
                 a.out.c_str(), kPerViewJson, a.out.c_str(), final_it);
     if (a.eval_every > 0) std::printf("  PSNR vs time: %s/%s (.csv)\n", a.out.c_str(), kPsnrSvg);
   }
+  if (a.optimize_poses || a.pose_noise != "none")
+    std::printf("  training poses (Sim(3)-aligned, vs true): rotation mean %.3f deg (input %.3f), translation mean %.4f "
+                "(%.2f%% of radius; input %.2f%%)%s\n",
+                s.train_pose_final.rotation_mean_deg, s.train_pose_input.rotation_mean_deg, s.train_pose_final.translation_mean,
+                100 * s.train_pose_final.translation_mean_frac, 100 * s.train_pose_input.translation_mean_frac,
+                a.optimize_poses ? (", refined model in " + a.out + "/refined_poses/").c_str() : "");
   std::printf("  model: %s (%.2f MB)\n", model_path.c_str(), double(s.model_file_bytes) / 1e6);
   if (summary) *summary = std::move(s);
   return kExitOk;
@@ -543,6 +598,20 @@ Command add_train_command(CLI::App& parent) {
   sub->add_option("--save-at", args->save_at, "Iterations at which to save model_<it>.hbgs and evaluate fully (ours_<it>)")
       ->capture_default_str();
   sub->add_option("--lpips-weights", args->lpips_weights, "LPIPS-Alex weights folder (default: ../shared/data/lpips_alex if present)");
+  sub->add_option("--pose-noise", args->pose_noise,
+                  "Seeded noise on the input poses: none, barf:SIGMA (BARF se(3), 0.15 = hard case), rot:DEG,trans:FRAC (of the scene radius); add ,seed:N")
+      ->capture_default_str();
+  sub->add_option("--pose-noise-on", args->pose_noise_on, "Which poses the noise perturbs")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"train", "test", "all"}));
+  sub->add_flag("--optimize-poses", args->optimize_poses, "Optimise the training poses jointly with the scene (saved to refined_poses/)");
+  sub->add_option("--coarse-levels", args->coarse_levels,
+                  "Coarse-to-fine halvings over the first 30% of iterations (-1: 2 with --optimize-poses, else 0)")
+      ->capture_default_str()
+      ->check(CLI::Range(-1, 4));
+  sub->add_option("--pose-lr", args->pose_lr, "Initial pose learning rate (rad; translation x scene extent)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   sub->add_flag("--resume", args->resume, "Continue the run in --out from its checkpoint (options default to its run.json)");
   sub->add_flag("--force", args->force, "Overwrite an existing run in --out");
   sub->add_flag("-q,--quiet", args->quiet, "No progress output, only the summary");

@@ -13,6 +13,7 @@
 #include "gs/metrics/lpips.h"
 #include "gs/model/evaluate.h"
 #include "gs/model/hybrid_model.h"
+#include "gs/pose.h"
 #include "gs/status.h"
 
 namespace hbgs::cli {
@@ -77,6 +78,12 @@ struct TrainArgs {
   int checkpoint_every = 1000, eval_every = 500;
   std::string save_at = "1000,7000,30000";
   std::string lpips_weights;
+  // Poses: seeded noise on the input poses, joint optimisation, coarse to fine (-1: 2 levels when
+  // optimising poses, else 0), the initial pose learning rate (rotation rad, translation x extent).
+  std::string pose_noise = "none", pose_noise_on = "train";
+  bool optimize_poses = false;
+  int coarse_levels = -1;
+  double pose_lr = 1e-2;
   bool resume = false, force = false, quiet = false;
   std::vector<std::string> given;
 };
@@ -91,6 +98,8 @@ struct TrainSummary {
   uint64_t model_bytes = 0, model_file_bytes = 0;
   std::string isa;
   int threads = 0;
+  bool have_pose_errors = false;
+  gs::pose::PoseErrors train_pose_input, train_pose_final;  // Sim(3)-aligned, against the true poses
 };
 int run_train(const TrainArgs& args, TrainSummary* summary);
 

@@ -20,7 +20,6 @@ constexpr double kRadToDeg = 180.0 / kPi;
 // theta^6 used instead have a truncation error below 1e-17 there.
 constexpr double kSeriesAngle = 1e-2;
 // BARF's clamp of the arccos argument (camera.py rotation_distance).
-constexpr double kAcosClamp = 1e-7;
 // BARF's Blender camera radius: the noise is drawn in a frame where the scene radius is this.
 constexpr double kBarfRadius = 4.03;
 
@@ -112,10 +111,10 @@ void store(const double R[9], const double t[3], Pose* p) {
 }
 
 double rotation_error_deg_d(const double Ra[9], const double Rb[9]) {
-  double M[9];
+  double M[9], phi[3];
   matmul_bt(Ra, Rb, M);
-  const double c = std::clamp((M[0] + M[4] + M[8] - 1) / 2, -1 + kAcosClamp, 1 - kAcosClamp);
-  return std::acos(c) * kRadToDeg;
+  so3_log(M, phi);
+  return std::sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]) * kRadToDeg;
 }
 
 std::string fmt(double v) {

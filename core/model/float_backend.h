@@ -101,7 +101,7 @@ class FloatBackend {
   int replans() const { return replans_; }
 
   Status render_bwd(const float* v_rgb, float* v_means, float* v_log_scales, float* v_quats, float* v_opacities,
-                    float* v_colors, float* v_means2d) {
+                    float* v_colors, float* v_means2d, double* v_pose) {
     GaussianGrads g;
     g.v_means = v_means;
     g.v_log_scales = v_log_scales;
@@ -109,7 +109,9 @@ class FloatBackend {
     g.v_opacities = v_opacities;
     g.v_colors = v_colors;
     g.v_means2d = v_means2d;
-    return renderer_->backward(v_rgb, &g);
+    GS_RETURN_IF_ERROR(renderer_->backward(v_rgb, &g));
+    for (int i = 0; i < 6; ++i) v_pose[i] += g.v_pose[i];
+    return Status::Ok();
   }
 
   void loss_bwd(int W, int H, const float* image, const float* target, float* v_image, double* l1, double* ssim) {

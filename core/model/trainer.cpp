@@ -15,6 +15,7 @@
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
+#include "gs/pose.h"
 #include "gs/render.h"
 
 namespace gs::model {
@@ -22,7 +23,7 @@ namespace gs::model {
 namespace {
 
 constexpr char kCheckpointMagic[8] = {'H', 'B', 'G', 'S', 'C', 'K', 'P', 'T'};
-constexpr uint32_t kCheckpointVersion = 1;
+constexpr uint32_t kCheckpointVersion = 2;  // 2: training poses and their Adam state
 
 // expon(lr0, lr1, steps)(it): log-linear from lr0 to lr1 over `steps`, then held (Part B section 6).
 double expon_lr(double lr0, double lr1, int steps, int it) {
@@ -94,7 +95,10 @@ struct Trainer::Impl {
   HybridModel model;
   TrainOptions opt;
   std::vector<const io::DatasetView*> views;
-  std::vector<const Camera*> cameras;
+  std::vector<Camera> view_cameras;     // [views] current training poses (optimised in place)
+  std::vector<const Camera*> cameras;   // -> view_cameras (the image-feature bank reads these)
+  std::vector<double> pose_m, pose_v;   // [views, 6] Adam moments of the pose twists
+  std::vector<int32_t> pose_steps;      // [views] Adam steps taken per pose
   platform::ThreadPool* pool = nullptr;
   const simd::KernelTable* kernels = nullptr;
   ImageFeatureBank bank;
@@ -182,9 +186,36 @@ struct Trainer::Impl {
     return view_order[view_pos++];
   }
 
-  void load_target(const io::DatasetView& v) {
-    const std::vector<uint8_t>& px = v.image.pixels;
-    for (size_t i = 0; i < px.size(); ++i) target[i] = float(px[i]) * (1.0f / 255.0f);
+  // Target at resolution divisor s (s x s block means, matching scaled_camera).
+  void load_target(const io::DatasetView& v, int s) {
+    io::box_downsample_rgb(v.image.pixels.data(), v.image.width, v.image.height, s, target.data());
+  }
+
+  int downscale_at(int it) const {
+    if (opt.coarse_levels <= 0) return 1;
+    const double coarse_end = opt.coarse_fraction * double(opt.iterations);
+    if (double(it) > coarse_end) return 1;
+    const int level = std::min(opt.coarse_levels - 1, int(double(it - 1) * opt.coarse_levels / std::max(coarse_end, 1.0)));
+    return 1 << (opt.coarse_levels - level);
+  }
+
+  // One Adam step on the pose of view vi from its twist gradient g (rho, phi), retracted on SE(3).
+  void pose_adam(size_t vi, const double g[6], int it) {
+    const double warm = opt.pose_warmup > 0 ? std::min(1.0, double(it) / double(opt.pose_warmup)) : 1.0;
+    const double lr_rot = warm * expon_lr(opt.lr_pose_rotation_init, opt.lr_pose_rotation_final, opt.schedule_iterations, it);
+    const double lr_tr = warm * model.scene_extent *
+                         expon_lr(opt.lr_pose_translation_init, opt.lr_pose_translation_final, opt.schedule_iterations, it);
+    const int step = ++pose_steps[vi];
+    const double bc1 = 1 - std::pow(0.9, step), bc2 = 1 - std::pow(0.999, step);
+    double xi[6];
+    for (int i = 0; i < 6; ++i) {
+      double& m = pose_m[6 * vi + size_t(i)];
+      double& v = pose_v[6 * vi + size_t(i)];
+      m = 0.9 * m + 0.1 * g[i];
+      v = 0.999 * v + 0.001 * g[i] * g[i];
+      xi[i] = -(i < 3 ? lr_tr : lr_rot) * (m / bc1) / (std::sqrt(v / bc2) + opt.adam_eps);
+    }
+    pose::apply_left_twist(xi, &view_cameras[vi].pose);
   }
 
   void adam_all(int it) {
@@ -378,6 +409,11 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   if (options.iterations < 0 || options.schedule_iterations < 1 || options.update_interval < 1 || options.update_depth < 0 ||
       options.update_hierarchy_factor < 1 || options.update_init_factor < 1)
     return invalid_argument("trainer: iteration counts and densification intervals must be positive");
+  if (options.coarse_levels < 0 || options.coarse_levels > 4 || !(options.coarse_fraction >= 0 && options.coarse_fraction <= 1))
+    return invalid_argument("trainer: coarse_levels must be 0-4 and coarse_fraction in [0, 1]");
+  if (!(options.lr_pose_rotation_init >= 0) || !(options.lr_pose_rotation_final > 0) || !(options.lr_pose_translation_init >= 0) ||
+      !(options.lr_pose_translation_final > 0) || options.pose_warmup < 0)
+    return invalid_argument("trainer: pose learning rates must be positive and the warm-up non-negative");
   std::unique_ptr<Trainer> t(new Trainer());
   Impl& d = *t->impl_;
   d.model = std::move(model);
@@ -395,11 +431,15 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
                               std::to_string(v.image.height) + " image with " + std::to_string(v.image.channels) +
                               " channels, but its camera is " + std::to_string(v.camera.intr.width) + "x" +
                               std::to_string(v.camera.intr.height) + " RGB");
-    d.cameras.push_back(&v.camera);
+    d.view_cameras.push_back(v.camera);
     images.push_back(&v.image);
     max_w = std::max(max_w, v.camera.intr.width);
     max_h = std::max(max_h, v.camera.intr.height);
   }
+  for (const Camera& c : d.view_cameras) d.cameras.push_back(&c);
+  d.pose_m.assign(6 * train_views.size(), 0.0);
+  d.pose_v.assign(6 * train_views.size(), 0.0);
+  d.pose_steps.assign(train_views.size(), 0);
   if (d.paper()) GS_RETURN_IF_ERROR(d.bank.init(d.cameras, images));
   const size_t cap = d.cap(), K = size_t(d.k());
   RenderCapacity rc;
@@ -443,16 +483,21 @@ Status Trainer::step(IterationStats* stats) {
   const int it = d.iteration + 1;
   const int vi = d.next_view();
   const io::DatasetView& view = *d.views[size_t(vi)];
-  d.load_target(view);
+  const int scale = d.downscale_at(it);
+  const Camera cam = scaled_camera(d.view_cameras[size_t(vi)], scale);
+  d.load_target(view, scale);
   const size_t M = d.model.anchor_count;
   for (ParamGroup& g : d.groups) std::fill(g.grad.begin(), g.grad.begin() + std::ptrdiff_t(g.live(M)), 0.0f);
   ModelParamsT<float> p = d.params();
   ModelGradsT<float> grads = d.grads();
+  double v_pose[6] = {0, 0, 0, 0, 0, 0};
+  if (d.opt.optimize_poses) grads.pose = v_pose;
   StepResult res;
-  GS_RETURN_IF_ERROR(step_forward_backward(d.backend, p, view.camera, d.target.data(), d.opt.step, d.ws, &grads, &res));
+  GS_RETURN_IF_ERROR(step_forward_backward(d.backend, p, cam, d.target.data(), d.opt.step, d.ws, &grads, &res));
   d.last_visible = res.visible_anchors;
-  if (it > d.opt.stat_start && it < d.opt.update_until) d.accumulate_stats(view.camera);
+  if (it > d.opt.stat_start && it < d.opt.update_until) d.accumulate_stats(cam);
   d.adam_all(it);
+  if (d.opt.optimize_poses) d.pose_adam(size_t(vi), v_pose, it);
   bool adjusted = false;
   if (it > d.opt.update_from && it % d.opt.update_interval == 0 && it < d.opt.update_until) {
     d.adjust_anchors();
@@ -465,7 +510,8 @@ Status Trainer::step(IterationStats* stats) {
     stats->iteration = it;
     stats->view = vi;
     stats->step = res;
-    const size_t n = size_t(view.camera.intr.width) * size_t(view.camera.intr.height) * 3;
+    stats->downscale = scale;
+    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height) * 3;
     double se = 0;
     for (size_t i = 0; i < n; ++i) {
       const double e = double(d.ws.rgb[i]) - double(d.target[i]);
@@ -481,6 +527,8 @@ Status Trainer::step(IterationStats* stats) {
 }
 
 int Trainer::iteration() const { return impl_->iteration; }
+const std::vector<Camera>& Trainer::cameras() const { return impl_->view_cameras; }
+int Trainer::downscale_at(int iteration) const { return impl_->downscale_at(iteration); }
 const HybridModel& Trainer::model() const { return impl_->model; }
 const TrainOptions& Trainer::options() const { return impl_->opt; }
 uint64_t Trainer::planned_bytes() const { return impl_->planned_bytes; }
@@ -508,6 +556,15 @@ Status Trainer::save_checkpoint(const std::string& path) const {
   for (size_t i = 0; i < M; ++i) w.i32(d.anchor_seen[i]);
   w.floats(d.grad_accum.data(), M * K);
   for (size_t i = 0; i < M * K; ++i) w.i32(d.grad_denom[i]);
+  for (size_t v = 0; v < d.views.size(); ++v) {
+    w.floats(d.view_cameras[v].pose.R, 9);
+    w.floats(d.view_cameras[v].pose.t, 3);
+    w.i32(d.pose_steps[v]);
+    for (int i = 0; i < 6; ++i) {
+      w.f64(d.pose_m[6 * v + size_t(i)]);
+      w.f64(d.pose_v[6 * v + size_t(i)]);
+    }
+  }
   w.u64(detail::fnv1a64(w.bytes.data(), w.bytes.size()));
   return platform::write_file_atomic(path, w.bytes.data(), w.bytes.size());
 }
@@ -525,7 +582,7 @@ Status Trainer::load_checkpoint(const std::string& path) {
   if (!r.status().ok()) return r.status();
   if (version != kCheckpointVersion)
     return unsupported(path + ": checkpoint format version " + std::to_string(version) + ", this hbgs reads version " +
-                       std::to_string(kCheckpointVersion));
+                       std::to_string(kCheckpointVersion) + (version == 1 ? " (version 1 predates pose optimisation; restart the run)" : ""));
   if (bytes.size() < 8 || detail::fnv1a64(bytes.data(), bytes.size() - 8) != io::detail::load_u64(bytes.data() + bytes.size() - 8))
     return parse_error(path + ": checksum mismatch (the checkpoint is truncated or corrupt)");
   const uint64_t model_size = r.u64("the model size");
@@ -577,6 +634,15 @@ Status Trainer::load_checkpoint(const std::string& path) {
   for (size_t i = 0; i < M; ++i) d.anchor_seen[i] = r.i32("statistics");
   r.floats(d.grad_accum.data(), M * K, "statistics");
   for (size_t i = 0; i < M * K; ++i) d.grad_denom[i] = r.i32("statistics");
+  for (size_t v = 0; v < d.views.size(); ++v) {
+    r.floats(d.view_cameras[v].pose.R, 9, "training poses");
+    r.floats(d.view_cameras[v].pose.t, 3, "training poses");
+    d.pose_steps[v] = r.i32("training poses");
+    for (int i = 0; i < 6; ++i) {
+      d.pose_m[6 * v + size_t(i)] = r.f64("pose moments");
+      d.pose_v[6 * v + size_t(i)] = r.f64("pose moments");
+    }
+  }
   if (!r.status().ok()) return r.status();
   d.iteration = iteration;
   d.rng.state = rng_state;

@@ -387,6 +387,51 @@ TEST_CASE("decode: decoder input rows are features then image features then dire
   }
 }
 
+TEST_CASE("decode: finite differences of the decoder input w.r.t. the camera centre and its pose chain") {
+  Problem p(11);
+  const int G = 2;
+  const size_t V = p.V(), D = size_t(p.F + G + 4);
+  std::vector<double> g(V * size_t(G), 0.3);
+  std::mt19937_64 rng(12);
+  std::normal_distribution<double> nrm(0, 1);
+  std::vector<double> w(V * D);  // objective L = sum w . X
+  for (double& x : w) x = nrm(rng);
+  double centre[3] = {0.4, -0.3, -5.0};
+  std::vector<double> X(V * D);
+  auto objective = [&] {
+    build_decoder_input(p.anchors(), p.rows.data(), V, g.data(), G, centre, X.data());
+    double l = 0;
+    for (size_t i = 0; i < X.size(); ++i) l += w[i] * X[i];
+    return l;
+  };
+  double v_centre[3] = {0, 0, 0};
+  decoder_input_centre_bwd(p.anchors(), p.rows.data(), V, G, centre, w.data(), v_centre);
+  for (int c = 0; c < 3; ++c) {
+    const double fd = fd4(&centre[c], objective);
+    CAPTURE(c);
+    CHECK(std::fabs(v_centre[c]) > 1e-3);
+    CHECK(close(fd, v_centre[c]));
+  }
+  // An anchor on the distance floor contributes nothing and stays finite.
+  for (int c = 0; c < 3; ++c) p.positions[3 * size_t(p.rows[0]) + size_t(c)] = centre[c];
+  double v_floor[3] = {0, 0, 0};
+  decoder_input_centre_bwd(p.anchors(), p.rows.data(), 1, G, centre, w.data(), v_floor);
+  for (int c = 0; c < 3; ++c) CHECK(v_floor[c] == 0);
+
+  // The chain to the twist: C(rho) = -R^T (t + rho) for T <- Exp((rho, 0)) T, so dL/drho = -R g_C.
+  const ref::View<double> vw = test::random_view(rng, 32, 24);
+  const Camera cam = test::to_camera(test::to_float(vw));
+  const double g_c[3] = {0.7, -1.1, 0.4};
+  double v_pose[6] = {0, 0, 0, 0, 0, 0};
+  centre_grad_to_pose(cam.pose, g_c, v_pose);
+  for (int r = 0; r < 3; ++r) {
+    double expect = 0;  // d(g_C . C)/d rho_r = -sum_j g_C[j] R[r][j]
+    for (int j = 0; j < 3; ++j) expect -= g_c[j] * double(cam.pose.R[3 * r + j]);
+    CHECK(v_pose[r] == doctest::Approx(expect).epsilon(1e-12));
+  }
+  for (int r = 3; r < 6; ++r) CHECK(v_pose[r] == 0);
+}
+
 // Visibility pre-filter cases on a 64 x 48 camera (fx = 50, fy = 55, principal point off centre).
 struct VisCase {
   Camera cam;

@@ -56,6 +56,7 @@ struct RefBackend {
   ref::View<double> view;
   ref::Forward<double> fwd;
   uint64_t signature = 0;
+  double render_pose[6] = {0, 0, 0, 0, 0, 0};  // the rasteriser's share of the last pose gradient
   size_t N = 0;
 
   void mlp_fwd(const MlpShape& s, int32_t B, const double* x, const double* p, double* hidden, double* y) {
@@ -86,8 +87,9 @@ struct RefBackend {
     return Status::Ok();
   }
   Status render_bwd(const double* v_rgb, double* v_means, double* v_log_scales, double* v_quats, double* v_opacities,
-                    double* v_colors, double* v_means2d) {
+                    double* v_colors, double* v_means2d, double* v_pose) {
     const ref::Grads<double> g = ref::render_bwd(scene, view, fwd, v_rgb);
+    for (int i = 0; i < 6; ++i) v_pose[i] += render_pose[i] = g.v_pose[i];
     std::copy(g.v_means.begin(), g.v_means.begin() + long(3 * N), v_means);
     std::copy(g.v_log_scales.begin(), g.v_log_scales.begin() + long(3 * N), v_log_scales);
     std::copy(g.v_quats.begin(), g.v_quats.begin() + long(4 * N), v_quats);
@@ -140,7 +142,7 @@ struct FloatBackend {
     return renderer.forward(cam, gp, RenderOptions{}, rgb);
   }
   Status render_bwd(const float* v_rgb, float* v_means, float* v_log_scales, float* v_quats, float* v_opacities,
-                    float* v_colors, float* v_means2d) {
+                    float* v_colors, float* v_means2d, double* v_pose) {
     GaussianGrads g;
     g.v_means = v_means;
     g.v_log_scales = v_log_scales;
@@ -148,7 +150,9 @@ struct FloatBackend {
     g.v_opacities = v_opacities;
     g.v_colors = v_colors;
     g.v_means2d = v_means2d;
-    return renderer.backward(v_rgb, &g);
+    GS_RETURN_IF_ERROR(renderer.backward(v_rgb, &g));
+    for (int i = 0; i < 6; ++i) v_pose[i] += g.v_pose[i];
+    return Status::Ok();
   }
   void loss_bwd(int W, int H, const float* image, const float* target, float* v_image, double* l1, double* ssim) {
     kt->loss_bwd(&lp, W, H, image, target, 1.0, scratch.data(), v_image, l1, ssim);
@@ -419,6 +423,74 @@ TEST_CASE("step graph: gradients accumulate across calls and the gradient pass r
   small.reserve(prob.M - 1, prob.k, prob.shapes, prob.G, prob.W, prob.H);
   CHECK(step_forward_backward(be, b.params, prob.cam, b.target.data(), StepConfig{}, small, &b.grads, &r).code() ==
         StatusCode::kCapacityExceeded);
+}
+
+// The pose gradient (rasteriser twist + view direction and distance through the camera centre).
+// A translation twist rho moves every camera-space point by rho, exactly as shifting all world
+// content by R^T rho does; anchor positions are double here, so the translation components are
+// checked by the same double finite differences as every other parameter (h = 1e-5), covering
+// both paths (the decoder inputs see the anchors move relative to the camera centre). The rotation
+// components do not reach the decoder (the camera centre does not move under phi), so they must
+// equal the rasteriser's, whose finite-difference check is tests/core/test_grad_fd.cpp.
+void check_pose_fd(uint64_t seed, bool image_features) {
+  CAPTURE(seed);
+  const Problem prob(seed, image_features);
+  Bound<double> b(prob);
+  RefBackend be;
+  StepWorkspace<double> ws;
+  ws.reserve(prob.M, prob.k, prob.shapes, prob.G, prob.W, prob.H);
+  double v_pose[6] = {0, 0, 0, 0, 0, 0};
+  b.grads.pose = v_pose;
+  StepResult r0;
+  REQUIRE(step_forward_backward(be, b.params, prob.cam, b.target.data(), StepConfig{}, ws, &b.grads, &r0).ok());
+  double view_path = 0, total = 0;
+  for (int i = 0; i < 3; ++i) {
+    view_path += std::fabs(v_pose[i] - be.render_pose[i]);
+    total += std::fabs(v_pose[i]);
+  }
+  MESSAGE("seed " << seed << ": |translation gradient| " << total << ", view-direction share " << view_path / total);
+  CHECK(view_path > 0.01 * total);  // the decoder path is large enough for the check below to see it
+  for (int i = 3; i < 6; ++i) CHECK(v_pose[i] == be.render_pose[i]);
+
+  auto loss_at = [&](uint64_t* sig) {
+    be.signature = 0;
+    StepResult r;
+    REQUIRE(step_forward_backward(be, b.params, prob.cam, b.target.data(), StepConfig{}, ws,
+                                  static_cast<ModelGradsT<double>*>(nullptr), &r).ok());
+    uint64_t h = mix(be.signature, r.gaussians);
+    for (size_t v = 0; v < r.visible_anchors; ++v) h = mix(h, ws.rows[v]);
+    *sig = h;
+    return r.loss;
+  };
+  uint64_t sig0 = 0;
+  loss_at(&sig0);
+  const std::vector<double> positions0 = b.positions;
+  int compared = 0;
+  for (int c = 0; c < 3; ++c) {
+    const double dir[3] = {prob.cam.pose.R[3 * c], prob.cam.pose.R[3 * c + 1], prob.cam.pose.R[3 * c + 2]};  // R^T e_c
+    const double off[4] = {-2 * kStep, -kStep, kStep, 2 * kStep};
+    double l[4];
+    bool flip = false;
+    for (int q = 0; q < 4; ++q) {
+      for (size_t i = 0; i < prob.M; ++i)
+        for (int a = 0; a < 3; ++a) b.positions[3 * i + size_t(a)] = positions0[3 * i + size_t(a)] + off[q] * dir[a];
+      uint64_t sig = 0;
+      l[q] = loss_at(&sig);
+      flip = flip || sig != sig0;
+    }
+    b.positions = positions0;
+    if (flip) continue;
+    ++compared;
+    const double fd = (8 * (l[2] - l[1]) - (l[3] - l[0])) / (12 * kStep);
+    CAPTURE(c);
+    CHECK(std::fabs(fd - v_pose[c]) <= kRelTol * std::max(std::fabs(fd), std::fabs(v_pose[c])) + kAbsTol);
+  }
+  CHECK(compared >= 2);
+}
+
+TEST_CASE("step graph: finite differences of the pose gradient through the rasteriser and the view direction") {
+  check_pose_fd(21, true);
+  check_pose_fd(22, false);
 }
 
 // Relative error of a float gradient group against the double one.

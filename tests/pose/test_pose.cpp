@@ -16,8 +16,6 @@
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-// acos(1 - 1e-7) in degrees: the floor that BARF's arccos clamp puts under every rotation error.
-const double kClampFloorDeg = std::acos(1 - 1e-7) * 180 / kPi;
 
 // Portable seeded normals: mt19937_64's raw output is fixed by the standard; the distributions are not.
 struct Rng {
@@ -343,10 +341,13 @@ TEST_CASE("centre and rotation_error_deg") {
   const gs::Pose b;  // identity
   CHECK(std::abs(gs::pose::rotation_error_deg(a, b) - 10) < 1e-4);
   CHECK(std::abs(gs::pose::rotation_error_deg(b, a) - 10) < 1e-4);
-  // BARF's clamp: identical rotations report the floor, not 0.
-  CHECK(std::abs(gs::pose::rotation_error_deg(a, a) - kClampFloorDeg) < 1e-6);
-  CHECK(kClampFloorDeg > 0.0256);
-  CHECK(kClampFloorDeg < 0.0257);
+  // Exact near zero (no arccos floor): identical rotations report 0, a 0.001 deg turn 0.001 deg.
+  CHECK(gs::pose::rotation_error_deg(a, a) < 1e-6);
+  const double tiny[3] = {0, 1e-3 * kPi / 180, 0};
+  double Rt[9], Rat[9];
+  gs::pose::so3_exp(tiny, Rt);
+  matmul(Rt, R, Rat);
+  CHECK(std::abs(gs::pose::rotation_error_deg(pose_from(Rat, C), a) - 1e-3) < 2e-5);
 }
 
 TEST_CASE("pose_from_quaternion_checked accepts unit quaternions and rejects bad ones") {
@@ -699,7 +700,7 @@ TEST_CASE("pose_errors Sim3 alignment recovers a known similarity") {
     // Float storage of the estimates (|t| up to ~15): centres good to ~1e-6.
     CHECK(e.ate_rmse < 1e-5 * r);
     CHECK(e.translation_mean_frac < 1e-5);
-    CHECK(e.rotation_max_deg < kClampFloorDeg + 1e-4);
+    CHECK(e.rotation_max_deg < 1e-4);
     // Without alignment the same estimates are far off.
     const gs::pose::PoseErrors raw = gs::pose::pose_errors(est.data(), gt.data(), n, r, false);
     CHECK(raw.ate_rmse > 0.1);

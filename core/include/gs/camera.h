@@ -25,4 +25,20 @@ struct Camera {
   Pose pose;
 };
 
+// The camera seeing the image averaged over s x s pixel blocks (remainder rows and columns
+// dropped): block (i, j) has its centre at s (i + 0.5) in full-resolution pixels, so every
+// intrinsic divides by s exactly. s = 1 returns the camera unchanged.
+inline Camera scaled_camera(const Camera& c, int s) {
+  if (s <= 1) return c;
+  Camera out = c;
+  const float inv = 1.0f / float(s);
+  out.intr.fx *= inv;
+  out.intr.fy *= inv;
+  out.intr.cx *= inv;
+  out.intr.cy *= inv;
+  out.intr.width = c.intr.width / s > 0 ? c.intr.width / s : 1;
+  out.intr.height = c.intr.height / s > 0 ? c.intr.height / s : 1;
+  return out;
+}
+
 }  // namespace gs

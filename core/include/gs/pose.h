@@ -31,8 +31,8 @@ void apply_left_twist(const double xi[6], Pose* pose);
 // Twist xi with Exp(xi) from = to, i.e. the left difference to * from^-1 (for tests and step sizes).
 void left_difference(const Pose& from, const Pose& to, double xi[6]);
 
-// Angle of R_a R_b^T in degrees (arccos clamped to [-1 + 1e-7, 1 - 1e-7] as in BARF's protocol;
-// the clamp floors the reported error at acos(1 - 1e-7) = 0.0256 deg).
+// Angle of R_a R_b^T in degrees, from its axis-angle (so3_log). Not BARF's clamped arccos: that
+// clamp (1 - 1e-7) floors every error at 0.0256 deg, too coarse for sub-0.1 deg registration.
 // pose_errors uses the same formula.
 double rotation_error_deg(const Pose& a, const Pose& b);
 // Camera centre C = -R^T t (world units).

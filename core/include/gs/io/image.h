@@ -25,6 +25,20 @@ Expected<Image8> decode_image(const uint8_t* data, size_t size, int channels, co
 Expected<Image8> read_image(const std::string& path, int channels = 3);
 // Box-filter downscale to the given size (both <= the source size).
 Image8 resize_area(const Image8& src, int width, int height);
+// Mean of each s x s block of an 8-bit RGB image [H, W, 3] as floats in [0, 1], [H / s, W / s, 3]
+// (remainder rows and columns dropped; the matching camera is gs::scaled_camera). No allocation.
+inline void box_downsample_rgb(const uint8_t* rgb, int width, int height, int s, float* out) {
+  const int w = width / s, h = height / s;
+  const float norm = 1.0f / (255.0f * float(s * s));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) {
+        int sum = 0;
+        for (int dy = 0; dy < s; ++dy)
+          for (int dx = 0; dx < s; ++dx) sum += rgb[(size_t(y * s + dy) * size_t(width) + size_t(x * s + dx)) * 3 + size_t(c)];
+        out[(size_t(y) * size_t(w) + size_t(x)) * 3 + size_t(c)] = float(sum) * norm;
+      }
+}
 // Encodes as PNG; writes atomically (temp file + rename).
 Expected<std::vector<uint8_t>> encode_png(const Image8& image);
 Status write_png(const std::string& path, const Image8& image);

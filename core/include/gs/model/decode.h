@@ -91,6 +91,34 @@ void build_decoder_input(const AnchorParams<T>& a, const uint32_t* rows, size_t 
   }
 }
 
+// Backward of the direction and distance columns of build_decoder_input w.r.t. the camera centre
+// C (ACCUMULATED into v_centre [3]). With d = a - C, dir = d / |d|, dist = |d|:
+// dL/dd = (v_dir - dir (dir . v_dir)) / dist + dir v_dist, and dL/dC = -sum over anchors of dL/dd.
+// An anchor on the distance floor (1e-6) contributes nothing (the floored value is constant).
+template <class T>
+void decoder_input_centre_bwd(const AnchorParams<T>& a, const uint32_t* rows, size_t V, int G, const double centre[3],
+                              const T* v_X, double v_centre[3]) {
+  const int F = a.feature_dim;
+  const size_t D = size_t(F + G + 4);
+  for (size_t v = 0; v < V; ++v) {
+    const T* p = a.positions + 3 * size_t(rows[v]);
+    const double d[3] = {double(p[0]) - centre[0], double(p[1]) - centre[1], double(p[2]) - centre[2]};
+    const double dist = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(dist > 1e-6)) continue;
+    const T* g = v_X + v * D + size_t(F + G);
+    const double dir[3] = {d[0] / dist, d[1] / dist, d[2] / dist};
+    const double dot = dir[0] * double(g[0]) + dir[1] * double(g[1]) + dir[2] * double(g[2]);
+    for (int c = 0; c < 3; ++c) v_centre[c] -= (double(g[c]) - dir[c] * dot) / dist + dir[c] * double(g[3]);
+  }
+}
+
+// Pose gradient of a camera-centre gradient: C = -R^T t moves as C' = C - R^T rho under the left
+// twist (rho, phi) (the phi terms cancel), so dL/drho += -R g_C (ALGORITHM.md Part A item 14).
+inline void centre_grad_to_pose(const Pose& pose, const double g_centre[3], double v_pose[6]) {
+  for (int r = 0; r < 3; ++r)
+    v_pose[r] -= pose.R[3 * r] * g_centre[0] + pose.R[3 * r + 1] * g_centre[1] + pose.R[3 * r + 2] * g_centre[2];
+}
+
 // log(sigmoid(u)) without overflow, and sigmoid(u).
 template <class T>
 inline T log_sigmoid(T u) {

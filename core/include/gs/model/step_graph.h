@@ -12,7 +12,7 @@
 //                const T* y, const T* v_y, T* v_x /*overwritten or null*/, T* v_params /*+=*/);
 //   Status render_fwd(const Camera&, const NeuralGaussians<T>&, T* rgb);
 //   Status render_bwd(const T* v_rgb, T* v_means, T* v_log_scales, T* v_quats, T* v_opacities,
-//                     T* v_colors, T* v_means2d);
+//                     T* v_colors, T* v_means2d, double* v_pose /*[6] (rho, phi), +=*/);
 //   void loss_bwd(int W, int H, const T* image, const T* target, T* v_image, double* l1, double* ssim);
 // Memory: StepWorkspace is sized once by reserve(); the step itself allocates nothing.
 #pragma once
@@ -46,6 +46,9 @@ struct ModelGradsT {
   T* log_scales = nullptr;  // [M, 6]
   T* features = nullptr;    // [M, F]
   T* mlp[kMlpCount] = {nullptr, nullptr, nullptr, nullptr};
+  // [6] left twist (rho, phi) of the view's world-to-camera pose: through the rasteriser and through
+  // the decoder's view-direction and distance inputs (ALGORITHM.md Part A items 4, 7, 14).
+  double* pose = nullptr;
 };
 
 struct StepConfig {
@@ -155,8 +158,9 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   if (!grads) return Status::Ok();
 
   // Backward through the renderer (the volume term adds to its log-scale gradient).
+  double v_pose[6] = {0, 0, 0, 0, 0, 0};
   GS_RETURN_IF_ERROR(be.render_bwd(ws.v_rgb.data(), ws.v_means.data(), ws.v_log_scales.data(), ws.v_quats.data(),
-                                   ws.v_opacities.data(), ws.v_colors.data(), ws.v_means2d.data()));
+                                   ws.v_opacities.data(), ws.v_colors.data(), ws.v_means2d.data(), v_pose));
   for (size_t i = 0; i < 3 * N; ++i) ws.v_log_scales[i] += ws.v_ls_volume[i];
 
   // Decode backward: MLP output gradients and the anchor offset / log-scale gradients.
@@ -174,8 +178,15 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
       for (size_t i = 0; i < V * D; ++i) ws.v_X[i] += ws.v_x_tmp[i];
   }
 
-  // Anchor features and the image-feature MLP (the direction and distance inputs depend on the pose
-  // only, which this issue keeps fixed).
+  // The pose: the rasteriser's twist plus the view-direction / distance inputs through the centre.
+  if (grads->pose) {
+    double centre[3], v_centre[3] = {0, 0, 0};
+    camera_centre(cam.pose, centre);
+    decoder_input_centre_bwd(a, rows, V, G, centre, ws.v_X.data(), v_centre);
+    centre_grad_to_pose(cam.pose, v_centre, v_pose);
+    for (int i = 0; i < 6; ++i) grads->pose[i] += v_pose[i];
+  }
+  // Anchor features and the image-feature MLP.
   if (grads->features)
     for (size_t v = 0; v < V; ++v) {
       T* dst = grads->features + size_t(rows[v]) * size_t(F);

@@ -45,6 +45,19 @@ struct TrainOptions {
   int update_depth = 3, update_init_factor = 16, update_hierarchy_factor = 4;
   // Image features are recomputed from the current poses every this many iterations (0: never).
   int image_feature_refresh = 1000;
+  // Joint pose optimisation (ALGORITHM.md Part A item 7): one pose per training view, updated by
+  // Adam on a left se(3) increment after each render of that view, then retracted (R
+  // re-orthonormalised). Rates are per Adam step: radians, and translation in units of the scene
+  // extent; linear warm-up over pose_warmup iterations, then log-linear decay to the final rate at
+  // schedule_iterations.
+  bool optimize_poses = false;
+  double lr_pose_rotation_init = 1e-2, lr_pose_rotation_final = 1e-4;
+  double lr_pose_translation_init = 1e-2, lr_pose_translation_final = 1e-4;
+  int pose_warmup = 100;
+  // Coarse to fine: the first coarse_fraction of the iterations render and compare at reduced
+  // resolution, coarse_levels halvings spread evenly over it (2: 1/4 then 1/2), then full resolution.
+  int coarse_levels = 0;
+  double coarse_fraction = 0.3;
 };
 
 struct IterationStats {
@@ -56,6 +69,7 @@ struct IterationStats {
   size_t isects = 0;       // Gaussian-tile pairs rendered
   double seconds = 0;      // wall time of this iteration
   bool adjusted = false;   // anchors were grown / pruned this iteration
+  int downscale = 1;       // resolution divisor of this iteration (coarse to fine)
 };
 
 class Trainer {
@@ -73,9 +87,14 @@ class Trainer {
   int iteration() const;  // completed iterations
   const HybridModel& model() const;
   const TrainOptions& options() const;
+  // Current camera of every training view (the input poses, refined when optimize_poses is on).
+  const std::vector<Camera>& cameras() const;
+  // Resolution divisor used at a 1-based iteration (coarse to fine).
+  int downscale_at(int iteration) const;
 
   // Checkpoint: magic "HBGSCKPT", version, the model, every Adam moment and step count, densification
-  // statistics, iteration, RNG and view-order state. Written atomically (temp file + rename).
+  // statistics, iteration, RNG and view-order state, the training poses and their Adam state.
+  // Written atomically (temp file + rename). Other versions are refused with a message.
   Status save_checkpoint(const std::string& path) const;
   // Restores a checkpoint written by save_checkpoint for the same training views (count checked).
   Status load_checkpoint(const std::string& path);

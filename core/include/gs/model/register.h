@@ -1,0 +1,102 @@
+// SPDX-License-Identifier: MIT
+// Test-view registration against a frozen model (ALGORITHM.md Part A item 8, Part B section 9):
+// find the world-to-camera pose of a new image by minimising the photometric error of the render,
+// coarse to fine on a box pyramid of the image, with early stopping, the best pose kept, and a
+// verdict per view.
+//
+// Two solvers, same pyramid and stopping rules:
+//   kGaussNewton: Levenberg-Marquardt on the 6-DoF left twist with the renderer's analytic
+//                 forward-mode pose Jacobian (J^T W J, J^T W r; Huber-weighted residuals);
+//   kAdam:        Adam on the L1 photometric loss with the rasteriser's pose gradient (the
+//                 reference code's method, with a learning-rate decay per level).
+// Per level, the neural Gaussians are decoded once at the level's starting pose (colours depend
+// on the view direction) from a widened field of view, so anchors that come into view as the pose
+// moves are already there; within a level the objective is a fixed function of the pose.
+//
+// Memory: create() plans everything for the model and the largest image; register_view()
+// allocates nothing (tests/model/test_register.cpp counts operator new). Time is bounded by the
+// iteration caps and an optional wall-clock budget.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+
+#include "gs/camera.h"
+#include "gs/model/hybrid_model.h"
+#include "gs/status.h"
+
+namespace gs::platform { class ThreadPool; }
+namespace gs::simd { struct KernelTable; }
+
+namespace gs::model {
+
+struct RegisterOptions {
+  enum Solver { kGaussNewton, kAdam } solver = kGaussNewton;
+  int finest_downscale = 1;      // resolution divisor of the last level (1: full, 4: quarter)
+  int min_coarse_width = 40;     // the coarsest level is the largest halving at least this wide, px
+  int max_levels = 4;            // at most this many levels
+  int max_iterations_per_level = 20;  // LM; Adam uses adam_iterations_per_level
+  int adam_iterations_per_level = 100;
+  double time_budget_ms = 0;     // > 0: stop (keeping the best pose) when exceeded
+  float huber_delta = 0.1f;      // per-pixel residual norm beyond which the weight falls as 1/|r|
+  // Stopping: a level ends when an accepted step moves less than these (rad; x scene extent) or the
+  // cost falls by a relative amount below min_relative_decrease.
+  double min_step_rotation = 2e-5, min_step_translation = 2e-5, min_relative_decrease = 1e-5;
+  double adam_lr_rotation = 2e-3, adam_lr_translation = 2e-3;  // rad; x scene extent
+  // Verdict: converged when the final photometric RMSE (over colour values in [0, 1]) is at most
+  // max_rmse, the render explains at least min_explained of the image's variance (1 - MSE / Var:
+  // an image of something else, or with no contrast at all, explains nothing), the model covers
+  // at least min_coverage of the image (mean opacity of the render), and the pose moved at most
+  // max_rotation_deg / max_translation (x scene extent) from the start.
+  double max_rmse = 0.12, min_explained = 0.5, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
+};
+
+enum class RegisterVerdict {
+  kConverged,
+  kNothingVisible,   // no Gaussian of the model is visible from the start pose (e.g. behind the scene)
+  kPoorFit,          // finished, but the residual is too high, explains too little of the image, or the
+                     // model barely covers it (an image of something else, a black image)
+  kDiverged,         // the pose ran away from the start beyond the plausible range
+  kTimeBudget,       // stopped by the time budget before the finest level finished
+};
+const char* verdict_name(RegisterVerdict v);
+
+struct RegisterResult {
+  Pose pose;                  // best pose found (the start pose when nothing better was found)
+  RegisterVerdict verdict = RegisterVerdict::kNothingVisible;
+  double initial_rmse = 0;    // photometric RMSE at the start pose, finest level
+  double final_rmse = 0;      // at the returned pose, finest level
+  double coverage = 0;        // mean opacity (1 - final transmittance) of the final render
+  double explained = 0;       // 1 - MSE / variance of the image (finest level; 0 for a flat image)
+  int iterations = 0;         // solver steps over all levels
+  int levels = 0;
+  double milliseconds = 0;
+  bool converged() const { return verdict == RegisterVerdict::kConverged; }
+};
+
+class Registrar {
+ public:
+  // Plans for the model's anchors and images up to max_width x max_height (the full resolution;
+  // levels are smaller). The model must stay alive and unchanged while the registrar is used.
+  static Expected<std::unique_ptr<Registrar>> create(const HybridModel& model, int max_width, int max_height,
+                                                     const RegisterOptions& options, platform::ThreadPool* pool,
+                                                     const simd::KernelTable* kernels = nullptr);
+  ~Registrar();
+
+  // Registers one RGB image [H, W, 3] (8-bit) seen by a camera with intrinsics intr (full
+  // resolution, the image's size) from the start pose init. Errors (not verdicts): wrong sizes,
+  // an image larger than planned, an invalid camera or start pose. Allocates nothing.
+  Status register_view(const uint8_t* rgb, const PinholeIntrinsics& intr, const Pose& init, RegisterResult* result);
+
+  const RegisterOptions& options() const;
+  RegisterOptions& mutable_options();  // e.g. switch the solver between calls (no re-planning)
+  uint64_t planned_bytes() const;
+
+ private:
+  Registrar();
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace gs::model

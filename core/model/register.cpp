@@ -1,0 +1,362 @@
+// SPDX-License-Identifier: MIT
+// Registration of a view against a frozen model (see gs/model/register.h): pyramid, per-level
+// decoding, Levenberg-Marquardt or Adam on the pose twist, best-pose bookkeeping and the verdict.
+#include "gs/model/register.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+#include "float_backend.h"
+#include "gs/io/image.h"
+#include "gs/model/step_graph.h"
+#include "gs/platform/clock.h"
+#include "gs/pose.h"
+#include "gs/render.h"
+
+namespace gs::model {
+
+const char* verdict_name(RegisterVerdict v) {
+  switch (v) {
+    case RegisterVerdict::kConverged: return "converged";
+    case RegisterVerdict::kNothingVisible: return "nothing_visible";
+    case RegisterVerdict::kPoorFit: return "poor_fit";
+    case RegisterVerdict::kDiverged: return "diverged";
+    case RegisterVerdict::kTimeBudget: return "time_budget";
+  }
+  return "unknown";
+}
+
+namespace {
+
+ModelParamsT<float> frozen_params(const HybridModel& model) {
+  ModelParamsT<float> p;
+  const bool paper = model.config.image_features == ImageFeatureMode::kPaper;
+  p.anchors.count = model.anchor_count;
+  p.anchors.k = model.config.k;
+  p.anchors.feature_dim = model.config.feature_dim;
+  p.anchors.positions = model.positions.data();
+  p.anchors.offsets = model.offsets.data();
+  p.anchors.log_scales = model.log_scales.data();
+  p.anchors.features = model.features.data();
+  p.image_raw = paper ? model.image_raw.data() : nullptr;
+  p.image_feature_dim = paper ? model.config.image_feature_dim : 0;
+  for (int i = 0; i < kMlpCount; ++i) {
+    p.mlp[i] = model.mlps[i].params.empty() ? nullptr : model.mlps[i].params.data();
+    p.shapes[i] = model.mlps[i].shape;
+  }
+  return p;
+}
+
+// The camera used to choose and decode anchors: the same pose with the image widened by half its
+// size on every side, so anchors just outside the view (which a moving pose brings in) are decoded.
+Camera decode_camera(const Camera& cam) {
+  Camera c = cam;
+  c.intr.width = cam.intr.width * 2;
+  c.intr.height = cam.intr.height * 2;
+  c.intr.cx = cam.intr.cx + 0.5f * float(cam.intr.width);
+  c.intr.cy = cam.intr.cy + 0.5f * float(cam.intr.height);
+  return c;
+}
+
+}  // namespace
+
+struct Registrar::Impl {
+  const HybridModel* model = nullptr;
+  RegisterOptions opt;
+  platform::ThreadPool* pool = nullptr;
+  const simd::KernelTable* kernels = nullptr;
+  Renderer renderer;
+  detail::FloatBackend backend;
+  StepWorkspace<float> ws;
+  std::vector<float> target, rgb, v_rgb;  // [H, W, 3] of the current level
+  int max_w = 0, max_h = 0;
+  uint64_t bytes = 0;
+  double extent = 1;
+
+  // Decodes the model's Gaussians for a pose (colours for its view direction).
+  size_t decode(const Camera& cam) {
+    size_t V = 0;
+    return decode_view(backend, frozen_params(*model), decode_camera(cam), ws, &V);
+  }
+
+  Status render(const Camera& cam) {
+    GaussianParams gp;
+    gp.count = ws.ng.count;
+    gp.means = ws.ng.means;
+    gp.log_scales = ws.ng.log_scales;
+    gp.quats = ws.ng.quats;
+    gp.opacities = ws.ng.opacities;
+    gp.colors = ws.ng.colors;
+    RenderOptions ro;
+    ro.validate_inputs = false;  // decoded values are finite by construction
+    return renderer.forward(cam, gp, ro, rgb.data());
+  }
+
+  double rmse(const Camera& cam) const {
+    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height) * 3;
+    double se = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const double e = double(rgb[i]) - double(target[i]);
+      se += e * e;
+    }
+    return std::sqrt(se / double(n));
+  }
+
+  // Variance of the target's colour values (finest level), for the explained fraction.
+  double target_variance(const Camera& cam) const {
+    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height) * 3;
+    double sum = 0, sq = 0;
+    for (size_t i = 0; i < n; ++i) sum += target[i], sq += double(target[i]) * target[i];
+    const double mean = sum / double(n);
+    return std::max(sq / double(n) - mean * mean, 0.0);
+  }
+
+  double coverage(const Camera& cam) const {
+    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
+    const float* T = renderer.final_transmittance();
+    double c = 0;
+    for (size_t i = 0; i < n; ++i) c += 1.0 - double(T[i]);
+    return c / double(n);
+  }
+
+  bool step_small(const double xi[6]) const {
+    const double r = std::sqrt(xi[3] * xi[3] + xi[4] * xi[4] + xi[5] * xi[5]);
+    const double t = std::sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
+    return r < opt.min_step_rotation && t < opt.min_step_translation * extent;
+  }
+
+  // Levenberg-Marquardt at one level from cam.pose; returns the best pose in cam.pose.
+  Status level_gauss_newton(Camera& cam, int* iterations, double deadline) {
+    PoseNormalEquations ne;
+    GS_RETURN_IF_ERROR(render(cam));
+    GS_RETURN_IF_ERROR(renderer.pose_normal_equations(target.data(), nullptr, opt.huber_delta, &ne));
+    double lambda = 1e-3;
+    for (int it = 0; it < opt.max_iterations_per_level; ++it) {
+      if (deadline > 0 && platform::now_seconds() > deadline) break;
+      Eigen::Matrix<double, 6, 6> A;
+      Eigen::Matrix<double, 6, 1> b;
+      for (int r = 0; r < 6; ++r) {
+        b(r) = -ne.Jtr[r];
+        for (int c = 0; c < 6; ++c) A(r, c) = ne.JtJ[6 * r + c];
+      }
+      const double floor = 1e-12 * std::max(A.trace(), 1e-30);
+      bool accepted = false;
+      for (int attempt = 0; attempt < 8 && !accepted; ++attempt) {
+        Eigen::Matrix<double, 6, 6> Ad = A;
+        for (int d = 0; d < 6; ++d) Ad(d, d) += lambda * A(d, d) + floor;
+        const Eigen::Matrix<double, 6, 1> x = Ad.ldlt().solve(b);
+        double xi[6];
+        for (int d = 0; d < 6; ++d) xi[d] = std::isfinite(x(d)) ? x(d) : 0.0;
+        // Trust region: at most 0.05 rad (3 deg) and 0.05 x extent per step, so a step cannot jump
+        // over the basin into a look-alike view.
+        const double r = std::sqrt(xi[3] * xi[3] + xi[4] * xi[4] + xi[5] * xi[5]);
+        const double t = std::sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
+        const double shrink = std::min({1.0, 0.05 / std::max(r, 1e-30), 0.05 * extent / std::max(t, 1e-30)});
+        for (double& v : xi) v *= shrink;
+        Camera trial = cam;
+        pose::apply_left_twist(xi, &trial.pose);
+        GS_RETURN_IF_ERROR(render(trial));
+        PoseNormalEquations tne;
+        GS_RETURN_IF_ERROR(renderer.pose_normal_equations(target.data(), nullptr, opt.huber_delta, &tne));
+        ++*iterations;
+        if (tne.cost < ne.cost) {
+          const double decrease = (ne.cost - tne.cost) / std::max(ne.cost, 1e-30);
+          cam = trial;
+          ne = tne;
+          lambda = std::max(lambda / 3, 1e-7);
+          accepted = true;
+          if (step_small(xi) || decrease < opt.min_relative_decrease) return Status::Ok();
+        } else {
+          lambda *= 4;
+        }
+      }
+      if (!accepted) break;  // no descent direction left at this level
+    }
+    return Status::Ok();
+  }
+
+  // Adam on the L1 loss at one level; keeps the pose with the lowest loss seen (the loss is
+  // measured before the step, so the stored pose is the one that achieved it).
+  Status level_adam(Camera& cam, int* iterations, double deadline) {
+    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height) * 3;
+    double m[6] = {0, 0, 0, 0, 0, 0}, v[6] = {0, 0, 0, 0, 0, 0};
+    double best = INFINITY;
+    Pose best_pose = cam.pose;
+    const int steps = opt.adam_iterations_per_level;
+    for (int it = 1; it <= steps; ++it) {
+      if (deadline > 0 && platform::now_seconds() > deadline) break;
+      GS_RETURN_IF_ERROR(render(cam));
+      double l1 = 0;
+      const float inv = 1.0f / float(n);
+      for (size_t i = 0; i < n; ++i) {
+        const float e = rgb[i] - target[i];
+        l1 += std::fabs(double(e));
+        v_rgb[i] = e > 0 ? inv : (e < 0 ? -inv : 0.0f);
+      }
+      l1 /= double(n);
+      if (l1 < best) {
+        best = l1;
+        best_pose = cam.pose;
+      }
+      GaussianGrads g;
+      GS_RETURN_IF_ERROR(renderer.backward(v_rgb.data(), &g));
+      ++*iterations;
+      // Cosine decay of the rate over the level (large early steps, fine at the end).
+      const double decay = 0.5 * (1 + std::cos(M_PI * double(it - 1) / double(steps)));
+      const double bc1 = 1 - std::pow(0.9, it), bc2 = 1 - std::pow(0.999, it);
+      double xi[6];
+      for (int d = 0; d < 6; ++d) {
+        m[d] = 0.9 * m[d] + 0.1 * g.v_pose[d];
+        v[d] = 0.999 * v[d] + 0.001 * g.v_pose[d] * g.v_pose[d];
+        const double lr = d < 3 ? opt.adam_lr_translation * extent : opt.adam_lr_rotation;
+        xi[d] = -lr * (0.05 + 0.95 * decay) * (m[d] / bc1) / (std::sqrt(v[d] / bc2) + 1e-12);
+      }
+      pose::apply_left_twist(xi, &cam.pose);
+    }
+    cam.pose = best_pose;
+    return Status::Ok();
+  }
+};
+
+Registrar::Registrar() : impl_(new Impl) {}
+Registrar::~Registrar() = default;
+
+Expected<std::unique_ptr<Registrar>> Registrar::create(const HybridModel& model, int max_width, int max_height,
+                                                       const RegisterOptions& options, platform::ThreadPool* pool,
+                                                       const simd::KernelTable* kernels) {
+  GS_RETURN_IF_ERROR(model.config.validate());
+  if (model.anchor_count == 0) return invalid_argument("registration: the model has no anchors");
+  if (max_width < 1 || max_height < 1 || max_width > 16384 || max_height > 16384)
+    return invalid_argument("registration: image size " + std::to_string(max_width) + "x" + std::to_string(max_height) +
+                            " out of range");
+  if (options.finest_downscale < 1 || options.max_levels < 1 || options.max_iterations_per_level < 1 ||
+      options.adam_iterations_per_level < 1 || options.min_coarse_width < 1)
+    return invalid_argument("registration: downscale, levels and iteration caps must be positive");
+  std::unique_ptr<Registrar> r(new Registrar());
+  Impl& d = *r->impl_;
+  d.model = &model;
+  d.opt = options;
+  d.pool = pool;
+  d.kernels = kernels ? kernels : &simd::best_kernel_table();
+  d.max_w = max_width;
+  d.max_h = max_height;
+  d.extent = model.scene_extent;
+  const size_t cap = model.anchor_count, K = size_t(model.config.k);
+  RenderCapacity rc;
+  rc.max_gaussians = cap * K;
+  rc.max_isects = cap * K * 8;
+  rc.max_width = max_width;
+  rc.max_height = max_height;
+  rc.max_sh_degree = 0;
+  GS_RETURN_IF_ERROR(d.renderer.init(rc, pool, d.kernels));
+  size_t max_params = 0;
+  for (const Mlp& m : model.mlps) max_params = std::max(max_params, m.params.size());
+  d.backend.init(&d.renderer, d.kernels, pool, max_params, max_width);
+  const ModelParamsT<float> p = frozen_params(model);
+  d.ws.reserve(cap, model.config.k, p.shapes, p.image_feature_dim, 1, 1);
+  const size_t px = size_t(max_width) * size_t(max_height) * 3;
+  d.target.assign(px, 0.0f);
+  d.rgb.assign(px, 0.0f);
+  d.v_rgb.assign(px, 0.0f);
+  d.bytes = Renderer::plan_bytes(rc) + uint64_t(px) * 12 +
+            uint64_t(d.ws.X.size() * 3 + d.ws.means.size() * 4 + d.ws.quats.size() * 2) * 4;
+  return r;
+}
+
+const RegisterOptions& Registrar::options() const { return impl_->opt; }
+RegisterOptions& Registrar::mutable_options() { return impl_->opt; }
+uint64_t Registrar::planned_bytes() const { return impl_->bytes; }
+
+Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& intr, const Pose& init, RegisterResult* out) {
+  Impl& d = *impl_;
+  if (!rgb || !out) return invalid_argument("registration: null image or result");
+  if (intr.width > d.max_w || intr.height > d.max_h)
+    return capacity_exceeded("registration: a " + std::to_string(intr.width) + "x" + std::to_string(intr.height) +
+                             " image is larger than the planned " + std::to_string(d.max_w) + "x" + std::to_string(d.max_h));
+  const Camera full{intr, init};
+  if (Status st = validate_camera(full); !st.ok()) return invalid_argument("registration: start pose or camera: " + st.message());
+  const RegisterOptions& o = d.opt;
+  const double t0 = platform::now_seconds();
+  const double deadline = o.time_budget_ms > 0 ? t0 + 1e-3 * o.time_budget_ms : 0.0;
+  *out = RegisterResult();
+  out->pose = init;
+
+  // Pyramid: from the largest divisor (a power of two times the finest) still min_coarse_width wide.
+  const int finest = std::min(o.finest_downscale, std::max(1, std::min(intr.width, intr.height)));
+  int coarsest = finest, levels = 1;
+  while (levels < o.max_levels && intr.width / (coarsest * 2) >= o.min_coarse_width && intr.height / (coarsest * 2) >= 8) {
+    coarsest *= 2;
+    ++levels;
+  }
+
+  // The start: the finest level's residual, and whether the model is visible at all.
+  Camera cam = scaled_camera(full, finest);
+  io::box_downsample_rgb(rgb, intr.width, intr.height, finest, d.target.data());
+  if (d.decode(full) == 0) {
+    out->verdict = RegisterVerdict::kNothingVisible;
+    out->milliseconds = 1e3 * (platform::now_seconds() - t0);
+    return Status::Ok();
+  }
+  GS_RETURN_IF_ERROR(d.render(cam));
+  out->initial_rmse = d.rmse(cam);
+
+  Camera current = full;
+  bool timed_out = false;
+  for (int s = coarsest; s >= finest; s /= 2) {
+    if (deadline > 0 && platform::now_seconds() > deadline) {
+      timed_out = true;
+      break;
+    }
+    Camera level = scaled_camera(current, s);
+    io::box_downsample_rgb(rgb, intr.width, intr.height, s, d.target.data());
+    if (d.decode(current) == 0) break;  // the pose left the model: keep what we have
+    Status st = o.solver == RegisterOptions::kAdam ? d.level_adam(level, &out->iterations, deadline)
+                                                   : d.level_gauss_newton(level, &out->iterations, deadline);
+    GS_RETURN_IF_ERROR(st);
+    current.pose = level.pose;
+    ++out->levels;
+    if (s == finest) break;
+  }
+  if (deadline > 0 && platform::now_seconds() > deadline) timed_out = true;
+
+  // The final residual and coverage at the pose found (finest level, decoded for that pose); the
+  // start pose is kept if it fits better.
+  cam = scaled_camera(current, finest);
+  io::box_downsample_rgb(rgb, intr.width, intr.height, finest, d.target.data());
+  const size_t n_final = d.decode(current);
+  double final_rmse = INFINITY, cover = 0;
+  if (n_final > 0) {
+    GS_RETURN_IF_ERROR(d.render(cam));
+    final_rmse = d.rmse(cam);
+    cover = d.coverage(cam);
+  }
+  if (!(final_rmse <= out->initial_rmse)) {
+    current.pose = init;
+    cam = scaled_camera(current, finest);
+    d.decode(current);
+    GS_RETURN_IF_ERROR(d.render(cam));
+    final_rmse = d.rmse(cam);
+    cover = d.coverage(cam);
+  }
+  out->pose = current.pose;
+  out->final_rmse = final_rmse;
+  out->coverage = cover;
+  const double var = d.target_variance(cam);
+  out->explained = var > 1e-8 ? std::max(0.0, 1.0 - final_rmse * final_rmse / var) : 0.0;
+  const double moved_rot = pose::rotation_error_deg(init, current.pose);
+  double c0[3], c1[3];
+  pose::centre(init, c0);
+  pose::centre(current.pose, c1);
+  const double moved_t = std::sqrt((c0[0] - c1[0]) * (c0[0] - c1[0]) + (c0[1] - c1[1]) * (c0[1] - c1[1]) +
+                                   (c0[2] - c1[2]) * (c0[2] - c1[2]));
+  if (moved_rot > o.max_rotation_deg || moved_t > o.max_translation * d.extent) out->verdict = RegisterVerdict::kDiverged;
+  else if (timed_out) out->verdict = RegisterVerdict::kTimeBudget;
+  else if (!(final_rmse <= o.max_rmse) || out->explained < o.min_explained || cover < o.min_coverage)
+    out->verdict = RegisterVerdict::kPoorFit;
+  else out->verdict = RegisterVerdict::kConverged;
+  out->milliseconds = 1e3 * (platform::now_seconds() - t0);
+  return Status::Ok();
+}
+
+}  // namespace gs::model
