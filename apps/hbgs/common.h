@@ -33,6 +33,7 @@ Command add_bench_command(CLI::App& parent);
 Command add_train_command(CLI::App& parent);
 Command add_eval_command(CLI::App& parent);
 Command add_demo_command(CLI::App& parent);
+Command add_register_command(CLI::App& parent);
 
 // `hbgs bench ARGS...` bypasses CLI11 (except `hbgs bench --help`): ARGS go to bench_render as given.
 bool bench_passes_through(int argc, char** argv);
