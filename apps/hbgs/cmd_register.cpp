@@ -38,7 +38,7 @@ constexpr const char* kRegisterJson = "register.json";
 struct RegisterArgs {
   std::string input, image, init, camera, json;                  // single image
   std::string views, dataset, init_noise = "rot:10,trans:0.1", out;  // batch
-  std::string solver = "lm";
+  std::string solver = "keyframe";
   int downscale = 1;
   int threads = 0;
   double time_budget_ms = 0;
@@ -47,7 +47,9 @@ struct RegisterArgs {
 
 gs::model::RegisterOptions register_options(const RegisterArgs& a) {
   gs::model::RegisterOptions o;
-  o.solver = a.solver == "adam" ? gs::model::RegisterOptions::kAdam : gs::model::RegisterOptions::kGaussNewton;
+  o.solver = a.solver == "adam" ? gs::model::RegisterOptions::kAdam
+             : a.solver == "lm"  ? gs::model::RegisterOptions::kGaussNewton
+                                 : gs::model::RegisterOptions::kKeyframe;
   o.finest_downscale = a.downscale;
   o.time_budget_ms = a.time_budget_ms;
   return o;
@@ -425,9 +427,9 @@ Command add_register_command(CLI::App& parent) {
   sub->add_option("--downscale", args->downscale, "Resolution divisor of the finest level (4: quarter resolution)")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
-  sub->add_option("--solver", args->solver, "lm (Levenberg-Marquardt, analytic Jacobian) or adam")
+  sub->add_option("--solver", args->solver, "keyframe (direct alignment to rendered keyframes, then LM polish), lm (Levenberg-Marquardt with the renderer's analytic pose Jacobian at every level) or adam")
       ->capture_default_str()
-      ->check(CLI::IsMember({"lm", "adam"}));
+      ->check(CLI::IsMember({"keyframe", "lm", "adam"}));
   sub->add_option("--time-budget-ms", args->time_budget_ms, "Stop a view after this many ms, keeping the best pose (0: none)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e9));

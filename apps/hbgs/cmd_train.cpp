@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common.h"
+#include "gs/model/point_alignment.h"
 #include "gs/model/trainer.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
@@ -229,6 +230,8 @@ gs::Status apply_recorded_options(const std::string& run, TrainArgs* a) {
   take("optimize-poses", &a->optimize_poses, true);
   take("coarse-levels", &a->coarse_levels, true);
   take("pose-lr", &a->pose_lr, true);
+  take("point-align", &a->point_align, true);
+  take("register-passes", &a->register_passes, true);
   take("max-width", &a->max_width, true);
   take("iterations", &a->iterations, false);
   take("checkpoint-every", &a->checkpoint_every, false);
@@ -253,7 +256,8 @@ std::string run_json(const TrainArgs& a) {
                   {"lpips-weights", a.lpips_weights},   {"threads", a.threads},
                   {"pose-noise", a.pose_noise},         {"pose-noise-on", a.pose_noise_on},
                   {"optimize-poses", a.optimize_poses}, {"coarse-levels", a.coarse_levels},
-                  {"pose-lr", a.pose_lr}};
+                  {"pose-lr", a.pose_lr},               {"point-align", a.point_align},
+                  {"register-passes", a.register_passes}};
   return j.dump(2) + "\n";
 }
 
@@ -272,6 +276,10 @@ class ProgressLine {
  public:
   ProgressLine(int total, bool quiet) : total_(total), quiet_(quiet), tty_(isatty(fileno(stderr)) != 0) {}
   void update(const gs::model::IterationStats& s) {
+    if (s.poses_registered >= 0 && !quiet_) {
+      break_line();
+      std::fprintf(stderr, "it %d: registration pass moved %d poses\n", s.iteration, s.poses_registered);
+    }
     ema_loss_ = have_ ? 0.6 * ema_loss_ + 0.4 * s.step.loss : s.step.loss;
     ema_psnr_ = have_ ? 0.6 * ema_psnr_ + 0.4 * s.psnr : s.psnr;
     have_ = true;
@@ -351,6 +359,34 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
   }
   if (train_views.empty()) return fail(kCmd, a.dataset + ": no training views (every view is a test view)");
 
+  // Training-pose errors of the input (before any alignment), for the report.
+  std::vector<gs::Pose> input_poses;
+  for (const gs::io::DatasetView* v : train_views) input_poses.push_back(v->camera.pose);
+  const gs::pose::PoseErrors input_errors = errors_for(input_poses, train_index, truth, true);
+  gs::platform::ThreadPool pool(a.threads);
+  nlohmann::json point_alignment_json;
+  if (a.optimize_poses && a.point_align && !a.resume) {
+    // Stage 1: align the training poses to the SfM points (photometric, no model needed).
+    std::vector<gs::Camera> cams;
+    std::vector<const gs::io::Image8*> images;
+    for (const gs::io::DatasetView* v : train_views) cams.push_back(v->camera), images.push_back(&v->image);
+    gs::model::PointAlignReport rep;
+    if (!a.quiet) std::fprintf(stderr, "hbgs train: aligning %zu training poses to the SfM points...\n", cams.size());
+    gs::model::PointAlignOptions pao;
+    if (gs::Status st = gs::model::align_poses_to_points(ds.points_xyz.data(), ds.points_rgb.empty() ? nullptr : ds.points_rgb.data(), npoints, images, &cams, pao, &pool, &rep); !st.ok())
+      return fail(kCmd, st.to_string());
+    for (size_t i = 0; i < cams.size(); ++i) ds.views[train_index[i]].camera.pose = cams[i].pose;
+    std::vector<gs::Pose> aligned;
+    for (const gs::Camera& c : cams) aligned.push_back(c.pose);
+    const gs::pose::PoseErrors e = errors_for(aligned, train_index, truth, true);
+    point_alignment_json = {{"seconds", rep.seconds}, {"points", rep.points_used}, {"levels", rep.levels},
+                            {"rounds", rep.rounds}, {"errors", pose_errors_json(e, false)}};
+    if (!a.quiet)
+      std::fprintf(stderr, "hbgs train: point alignment in %.1f s: rotation mean %.3f deg (was %.3f), translation %.2f%% of radius (was %.2f%%)\n",
+                   rep.seconds, e.rotation_mean_deg, input_errors.rotation_mean_deg, 100 * e.translation_mean_frac,
+                   100 * input_errors.translation_mean_frac);
+  }
+
   gs::model::ModelConfig config;
   config.image_features = *mode;
   config.max_anchors = a.max_anchors;
@@ -366,8 +402,14 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
   topt.optimize_poses = a.optimize_poses;
   topt.coarse_levels = a.coarse_levels >= 0 ? a.coarse_levels : (a.optimize_poses ? 2 : 0);
   topt.lr_pose_rotation_init = topt.lr_pose_translation_init = a.pose_lr;
-  if (a.optimize_poses) topt.image_feature_refresh = 250;  // features follow the moving poses
-  gs::platform::ThreadPool pool(a.threads);
+  if (a.optimize_poses) {
+    topt.image_feature_refresh = 250;  // features follow the moving poses
+    topt.pose_warmup = std::max(1, a.iterations / 10);
+    if (a.register_passes > 0) {
+      topt.pose_register_every = std::max(1, a.iterations / (2 * a.register_passes));
+      topt.pose_register_until = a.iterations / 2;
+    }
+  }
   gs::Expected<std::unique_ptr<gs::model::Trainer>> created =
       gs::model::Trainer::create(std::move(model).value(), train_views, topt, &pool);
   if (!created.ok()) return fail(kCmd, created.status().to_string());
@@ -384,9 +426,6 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
     for (const gs::Camera& c : trainer.cameras()) out.push_back(c.pose);
     return out;
   };
-  std::vector<gs::Pose> input_poses;
-  for (const gs::io::DatasetView* v : train_views) input_poses.push_back(v->camera.pose);
-  const gs::pose::PoseErrors input_errors = errors_for(input_poses, train_index, truth, true);
   auto pose_json = [&] {
     const std::vector<gs::Pose> now = current_train_poses();
     return nlohmann::json{{"noise", a.pose_noise},
@@ -394,6 +433,7 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
                           {"optimized", a.optimize_poses},
                           {"scene_radius", truth.radius},
                           {"train_input", pose_errors_json(input_errors, false)},
+                          {"point_alignment", point_alignment_json},
                           {"train_final", pose_errors_json(errors_for(now, train_index, truth, true), true, train_names)},
                           {"train_final_unaligned", pose_errors_json(errors_for(now, train_index, truth, false), false)}};
   };
@@ -501,7 +541,14 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
     if (full) {
       out_st = full_eval(it, model_file_for(it));
       last_full = it;
-    } else if (a.eval_every > 0 && have_test && it % a.eval_every == 0) {
+    }
+    if (a.optimize_poses && a.eval_every > 0 && it % a.eval_every == 0 && !a.quiet) {
+      const gs::pose::PoseErrors e = errors_for(current_train_poses(), train_index, truth, true);
+      line.break_line();
+      std::fprintf(stderr, "it %d: training poses vs true: rotation mean %.3f deg (median %.3f), translation %.2f%% of radius\n", it,
+                   e.rotation_mean_deg, e.rotation_median_deg, 100 * e.translation_mean_frac);
+    }
+    if (!full && a.eval_every > 0 && have_test && it % a.eval_every == 0) {
       gs::model::EvalOptions quick;
       quick.psnr_only = true;
       gs::Expected<gs::model::EvalResult> r = gs::model::evaluate_views(trainer.model(), test_views, quick, &pool);
@@ -605,6 +652,12 @@ Command add_train_command(CLI::App& parent) {
       ->capture_default_str()
       ->check(CLI::IsMember({"train", "test", "all"}));
   sub->add_flag("--optimize-poses", args->optimize_poses, "Optimise the training poses jointly with the scene (saved to refined_poses/)");
+  sub->add_flag("!--no-point-align", args->point_align,
+                "With --optimize-poses: skip the photometric alignment of the poses to the SfM points before training");
+  sub->add_option("--register-passes", args->register_passes,
+                  "With --optimize-poses: registration passes (every training pose registered against the current model) over the first half")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1000));
   sub->add_option("--coarse-levels", args->coarse_levels,
                   "Coarse-to-fine halvings over the first 30% of iterations (-1: 2 with --optimize-poses, else 0)")
       ->capture_default_str()

@@ -82,8 +82,10 @@ struct TrainArgs {
   // optimising poses, else 0), the initial pose learning rate (rotation rad, translation x extent).
   std::string pose_noise = "none", pose_noise_on = "train";
   bool optimize_poses = false;
+  bool point_align = true;  // with optimize_poses: align the poses to the SfM points first
+  int register_passes = 0;  // with optimize_poses: registration passes over the first half
   int coarse_levels = -1;
-  double pose_lr = 1e-2;
+  double pose_lr = 2e-3;
   bool resume = false, force = false, quiet = false;
   std::vector<std::string> given;
 };

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "bilinear.h"
 #include "float_backend.h"
 #include "gs/io/image.h"
 #include "gs/model/step_graph.h"
@@ -48,14 +49,15 @@ ModelParamsT<float> frozen_params(const HybridModel& model) {
   return p;
 }
 
-// The camera used to choose and decode anchors: the same pose with the image widened by half its
-// size on every side, so anchors just outside the view (which a moving pose brings in) are decoded.
+// The camera used to choose and decode anchors: the same pose with the image widened by a quarter
+// of its size on every side, so anchors just outside the view (which a moving pose brings in) are
+// decoded (a wider margin costs projection work on Gaussians that mostly stay outside).
 Camera decode_camera(const Camera& cam) {
   Camera c = cam;
-  c.intr.width = cam.intr.width * 2;
-  c.intr.height = cam.intr.height * 2;
-  c.intr.cx = cam.intr.cx + 0.5f * float(cam.intr.width);
-  c.intr.cy = cam.intr.cy + 0.5f * float(cam.intr.height);
+  c.intr.width = cam.intr.width + cam.intr.width / 2;
+  c.intr.height = cam.intr.height + cam.intr.height / 2;
+  c.intr.cx = cam.intr.cx + 0.25f * float(cam.intr.width);
+  c.intr.cy = cam.intr.cy + 0.25f * float(cam.intr.height);
   return c;
 }
 
@@ -70,7 +72,11 @@ struct Registrar::Impl {
   detail::FloatBackend backend;
   StepWorkspace<float> ws;
   std::vector<float> target, rgb, v_rgb;  // [H, W, 3] of the current level
+  // kKeyframe: the keyframe at the finest level (colour, alpha-weighted depth, alpha) and its
+  // box-filtered level copies, and the target at the level.
+  std::vector<float> key_rgb, key_depth, key_alpha, lvl_rgb, lvl_depth, lvl_alpha;
   int max_w = 0, max_h = 0;
+  size_t planned_rows = 0;
   uint64_t bytes = 0;
   double extent = 1;
 
@@ -176,6 +182,173 @@ struct Registrar::Impl {
     return Status::Ok();
   }
 
+  // Mean of f x f blocks of a [h, w, c] float image (remainder dropped).
+  static void box_down(const float* src, int w, int h, int c, int f, float* dst) {
+    const int lw = w / f, lh = h / f;
+    const float norm = 1.0f / float(f * f);
+    for (int y = 0; y < lh; ++y)
+      for (int x = 0; x < lw; ++x)
+        for (int k = 0; k < c; ++k) {
+          float sum = 0;
+          for (int dy = 0; dy < f; ++dy)
+            for (int dx = 0; dx < f; ++dx) sum += src[(size_t(y * f + dy) * size_t(w) + size_t(x * f + dx)) * size_t(c) + size_t(k)];
+          dst[(size_t(y) * size_t(lw) + size_t(x)) * size_t(c) + size_t(k)] = sum * norm;
+        }
+  }
+
+  // Renders the keyframe (colour, depth, alpha) at the finest level for the pose of cam.
+  Status render_keyframe(const Camera& full, int finest) {
+    const Camera cam = scaled_camera(full, finest);
+    decode(full);
+    GaussianParams gp;
+    gp.count = ws.ng.count;
+    gp.means = ws.ng.means;
+    gp.log_scales = ws.ng.log_scales;
+    gp.quats = ws.ng.quats;
+    gp.opacities = ws.ng.opacities;
+    gp.colors = ws.ng.colors;
+    RenderOptions ro;
+    ro.validate_inputs = false;
+    ro.depth = true;
+    GS_RETURN_IF_ERROR(renderer.forward(cam, gp, ro, key_rgb.data(), key_depth.data()));
+    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
+    const float* T = renderer.final_transmittance();
+    for (size_t i = 0; i < n; ++i) key_alpha[i] = 1.0f - T[i];
+    return Status::Ok();
+  }
+
+  // Mean Huber cost of warping the level keyframe by rel (keyframe camera -> target camera) into
+  // the level target, and optionally the normal equations. Keyframe pixels with alpha < 0.5 are
+  // skipped; one that warps outside the target costs a full-delta residual.
+  double warp_cost(const PinholeIntrinsics& in, const Pose& rel, Eigen::Matrix<double, 6, 6>* A,
+                   Eigen::Matrix<double, 6, 1>* b) const {
+    const double delta = opt.huber_delta;
+    const detail::RgbView tgt{target.data(), in.width, in.height};
+    double R[9], t[3];
+    for (int i = 0; i < 9; ++i) R[i] = rel.R[i];
+    for (int i = 0; i < 3; ++i) t[i] = rel.t[i];
+    if (A) A->setZero(), b->setZero();
+    double total = 0;
+    size_t used = 0;
+    for (int y = 0; y < in.height; ++y)
+      for (int x = 0; x < in.width; ++x) {
+        const size_t pix = size_t(y) * size_t(in.width) + size_t(x);
+        const double alpha = lvl_alpha[pix];
+        if (!(alpha > 0.5)) continue;
+        const double z = lvl_depth[pix] / alpha;
+        if (!(z > 1e-3)) continue;
+        ++used;
+        const double Xk[3] = {z * ((x + 0.5) - in.cx) / in.fx, z * ((y + 0.5) - in.cy) / in.fy, z};
+        double m[3];
+        for (int r = 0; r < 3; ++r) m[r] = R[3 * r] * Xk[0] + R[3 * r + 1] * Xk[1] + R[3 * r + 2] * Xk[2] + t[r];
+        double c[3], cu[3], cv[3];
+        if (!(m[2] > 1e-3) || !detail::sample_bilinear(tgt, in.fx * m[0] / m[2] + in.cx, in.fy * m[1] / m[2] + in.cy, c, cu, cv)) {
+          total += detail::huber_cost(2 * delta, delta);
+          continue;
+        }
+        double r[3];
+        for (int k = 0; k < 3; ++k) r[k] = c[k] - lvl_rgb[3 * pix + size_t(k)];
+        const double rn = std::sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+        total += detail::huber_cost(rn, delta);
+        if (!A) continue;
+        double du[6], dv[6];
+        detail::projection_twist_jacobian(m, in.fx, in.fy, du, dv);
+        const double w = detail::huber_weight(rn, delta);
+        for (int k = 0; k < 3; ++k) {
+          double J[6];
+          for (int j = 0; j < 6; ++j) J[j] = cu[k] * du[j] + cv[k] * dv[j];
+          for (int i = 0; i < 6; ++i) {
+            (*b)(i) += w * J[i] * r[k];
+            for (int j = i; j < 6; ++j) (*A)(i, j) += w * J[i] * J[j];
+          }
+        }
+      }
+    if (A)
+      for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < i; ++j) (*A)(i, j) = (*A)(j, i);
+    return used ? total / double(used) : INFINITY;
+  }
+
+  // Direct alignment of the target to the keyframe at one level; rel is updated in place.
+  void align_level(const PinholeIntrinsics& in, Pose* rel, int* iterations, double deadline) {
+    Eigen::Matrix<double, 6, 6> A;
+    Eigen::Matrix<double, 6, 1> b;
+    double c = warp_cost(in, *rel, &A, &b);
+    if (!std::isfinite(c)) return;
+    double lambda = 1e-3;
+    for (int it = 0; it < opt.keyframe_iterations; ++it) {
+      if (deadline > 0 && platform::now_seconds() > deadline) return;
+      bool accepted = false;
+      for (int attempt = 0; attempt < 6 && !accepted; ++attempt) {
+        Eigen::Matrix<double, 6, 6> Ad = A;
+        for (int d = 0; d < 6; ++d) Ad(d, d) += lambda * A(d, d) + 1e-12 * (A.trace() + 1e-30);
+        const Eigen::Matrix<double, 6, 1> x = Ad.ldlt().solve(-b);
+        double xi[6];
+        for (int d = 0; d < 6; ++d) xi[d] = std::isfinite(x(d)) ? x(d) : 0.0;
+        const double r = std::sqrt(xi[3] * xi[3] + xi[4] * xi[4] + xi[5] * xi[5]);
+        const double t = std::sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
+        const double shrink = std::min({1.0, 0.05 / std::max(r, 1e-30), 0.05 * extent / std::max(t, 1e-30)});
+        for (double& v : xi) v *= shrink;
+        Pose trial = *rel;
+        pose::apply_left_twist(xi, &trial);
+        const double ct = warp_cost(in, trial, nullptr, nullptr);
+        ++*iterations;
+        if (ct < c) {
+          const double decrease = (c - ct) / std::max(c, 1e-30);
+          *rel = trial;
+          c = warp_cost(in, *rel, &A, &b);
+          lambda = std::max(lambda / 3, 1e-7);
+          accepted = true;
+          if (step_small(xi) || decrease < opt.min_relative_decrease) return;
+        } else {
+          lambda *= 4;
+        }
+      }
+      if (!accepted) return;
+    }
+  }
+
+  // kKeyframe: keyframes at the current pose, each aligned coarse to fine; returns the new pose.
+  Status keyframe_alignment(Camera* full, const uint8_t* image, int coarsest, int finest, int* iterations, int* levels,
+                            double deadline) {
+    const Camera kcam = scaled_camera(*full, finest);
+    const int kw = kcam.intr.width, kh = kcam.intr.height;
+    for (int k = 0; k < opt.keyframes; ++k) {
+      if (deadline > 0 && platform::now_seconds() > deadline) break;
+      GS_RETURN_IF_ERROR(render_keyframe(*full, finest));
+      Pose rel;  // identity: keyframe camera -> target camera
+      for (int s = coarsest; s >= finest; s /= 2) {
+        const int f = s / finest;
+        const PinholeIntrinsics in = scaled_camera(kcam, f).intr;
+        box_down(key_rgb.data(), kw, kh, 3, f, lvl_rgb.data());
+        box_down(key_depth.data(), kw, kh, 1, f, lvl_depth.data());
+        box_down(key_alpha.data(), kw, kh, 1, f, lvl_alpha.data());
+        io::box_downsample_rgb(image, full->intr.width, full->intr.height, s, target.data());
+        align_level(in, &rel, iterations, deadline);
+        if (k == 0) ++*levels;
+      }
+      // The target pose: rel o keyframe pose (R = R_rel R_k, t = R_rel t_k + t_rel).
+      Pose next;
+      for (int r = 0; r < 3; ++r) {
+        double tr = rel.t[r];
+        for (int c = 0; c < 3; ++c) {
+          double v = 0;
+          for (int j = 0; j < 3; ++j) v += double(rel.R[3 * r + j]) * full->pose.R[3 * j + c];
+          next.R[3 * r + c] = float(v);
+          tr += double(rel.R[3 * r + c]) * full->pose.t[c];
+        }
+        next.t[r] = float(tr);
+      }
+      const double zero[6] = {0, 0, 0, 0, 0, 0};
+      pose::apply_left_twist(zero, &next);  // re-orthonormalise
+      double moved[6];
+      pose::left_difference(full->pose, next, moved);
+      full->pose = next;
+      if (step_small(moved)) break;  // the keyframe already sits at the answer
+    }
+    return Status::Ok();
+  }
+
   // Adam on the L1 loss at one level; keeps the pose with the lowest loss seen (the loss is
   // measured before the step, so the stored pose is the one that achieved it).
   Status level_adam(Camera& cam, int* iterations, double deadline) {
@@ -224,7 +397,7 @@ Registrar::~Registrar() = default;
 
 Expected<std::unique_ptr<Registrar>> Registrar::create(const HybridModel& model, int max_width, int max_height,
                                                        const RegisterOptions& options, platform::ThreadPool* pool,
-                                                       const simd::KernelTable* kernels) {
+                                                       const simd::KernelTable* kernels, size_t plan_anchor_rows) {
   GS_RETURN_IF_ERROR(model.config.validate());
   if (model.anchor_count == 0) return invalid_argument("registration: the model has no anchors");
   if (max_width < 1 || max_height < 1 || max_width > 16384 || max_height > 16384)
@@ -242,7 +415,8 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const HybridModel& model,
   d.max_w = max_width;
   d.max_h = max_height;
   d.extent = model.scene_extent;
-  const size_t cap = model.anchor_count, K = size_t(model.config.k);
+  const size_t cap = std::max(model.anchor_count, plan_anchor_rows), K = size_t(model.config.k);
+  d.planned_rows = cap;
   RenderCapacity rc;
   rc.max_gaussians = cap * K;
   rc.max_isects = cap * K * 8;
@@ -259,7 +433,11 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const HybridModel& model,
   d.target.assign(px, 0.0f);
   d.rgb.assign(px, 0.0f);
   d.v_rgb.assign(px, 0.0f);
-  d.bytes = Renderer::plan_bytes(rc) + uint64_t(px) * 12 +
+  const size_t npx = size_t(max_width) * size_t(max_height);
+  d.key_rgb.assign(px, 0.0f);
+  d.lvl_rgb.assign(px, 0.0f);
+  for (auto* v : {&d.key_depth, &d.key_alpha, &d.lvl_depth, &d.lvl_alpha}) v->assign(npx, 0.0f);
+  d.bytes = Renderer::plan_bytes(rc) + uint64_t(px) * 20 + uint64_t(npx) * 16 +
             uint64_t(d.ws.X.size() * 3 + d.ws.means.size() * 4 + d.ws.quats.size() * 2) * 4;
   return r;
 }
@@ -274,6 +452,8 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
   if (intr.width > d.max_w || intr.height > d.max_h)
     return capacity_exceeded("registration: a " + std::to_string(intr.width) + "x" + std::to_string(intr.height) +
                              " image is larger than the planned " + std::to_string(d.max_w) + "x" + std::to_string(d.max_h));
+  if (d.model->anchor_count > d.planned_rows)
+    return capacity_exceeded("registration: the model has more anchors than planned");
   const Camera full{intr, init};
   if (Status st = validate_camera(full); !st.ok()) return invalid_argument("registration: start pose or camera: " + st.message());
   const RegisterOptions& o = d.opt;
@@ -303,7 +483,21 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
 
   Camera current = full;
   bool timed_out = false;
-  for (int s = coarsest; s >= finest; s /= 2) {
+  if (o.solver == RegisterOptions::kKeyframe) {
+    GS_RETURN_IF_ERROR(d.keyframe_alignment(&current, rgb, coarsest, finest, &out->iterations, &out->levels, deadline));
+    // Polish against the renderer itself (occlusion and view-dependent colour) at the finest level.
+    Camera level = scaled_camera(current, finest);
+    io::box_downsample_rgb(rgb, intr.width, intr.height, finest, d.target.data());
+    if (d.decode(current) > 0 && o.polish_iterations > 0 && !(deadline > 0 && platform::now_seconds() > deadline)) {
+      RegisterOptions saved = d.opt;
+      d.opt.max_iterations_per_level = o.polish_iterations;
+      const Status st = d.level_gauss_newton(level, &out->iterations, deadline);
+      d.opt = saved;
+      GS_RETURN_IF_ERROR(st);
+      current.pose = level.pose;
+    }
+  }
+  for (int s = coarsest; o.solver != RegisterOptions::kKeyframe && s >= finest; s /= 2) {
     if (deadline > 0 && platform::now_seconds() > deadline) {
       timed_out = true;
       break;

@@ -12,6 +12,7 @@
 #include "byte_codec.h"
 #include "float_backend.h"
 #include "gs/model/image_features.h"
+#include "gs/model/register.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
@@ -99,6 +100,7 @@ struct Trainer::Impl {
   std::vector<const Camera*> cameras;   // -> view_cameras (the image-feature bank reads these)
   std::vector<double> pose_m, pose_v;   // [views, 6] Adam moments of the pose twists
   std::vector<int32_t> pose_steps;      // [views] Adam steps taken per pose
+  std::unique_ptr<Registrar> registrar;  // registration passes (pose_register_every > 0)
   platform::ThreadPool* pool = nullptr;
   const simd::KernelTable* kernels = nullptr;
   ImageFeatureBank bank;
@@ -197,6 +199,28 @@ struct Trainer::Impl {
     if (double(it) > coarse_end) return 1;
     const int level = std::min(opt.coarse_levels - 1, int(double(it - 1) * opt.coarse_levels / std::max(coarse_end, 1.0)));
     return 1 << (opt.coarse_levels - level);
+  }
+
+  // Registers every training pose against the current model (see TrainOptions); returns how many
+  // poses moved.
+  Status register_all(int it, int* moved) {
+    *moved = 0;
+    // Registration at no finer than half resolution: a pass is for large errors (the joint Adam
+    // steps refine at full resolution), and its cost grows with the pixel count.
+    registrar->mutable_options().finest_downscale = std::max(2, downscale_at(it));
+    for (size_t v = 0; v < views.size(); ++v) {
+      const io::DatasetView& view = *views[v];
+      RegisterResult r;
+      GS_RETURN_IF_ERROR(registrar->register_view(view.image.pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
+      if (!(r.final_rmse < r.initial_rmse) || r.verdict == RegisterVerdict::kDiverged || r.verdict == RegisterVerdict::kNothingVisible)
+        continue;
+      view_cameras[v].pose = r.pose;
+      std::fill(pose_m.begin() + std::ptrdiff_t(6 * v), pose_m.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
+      std::fill(pose_v.begin() + std::ptrdiff_t(6 * v), pose_v.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
+      pose_steps[v] = 0;
+      ++*moved;
+    }
+    return Status::Ok();
   }
 
   // One Adam step on the pose of view vi from its twist gradient g (rho, phi), retracted on SE(3).
@@ -468,6 +492,14 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   d.pruned.assign(cap, 0);
   if (d.paper()) d.bank.compute(d.model.positions.data(), d.model.anchor_count, d.model.image_raw.data(), pool);
   uint64_t bytes = Renderer::plan_bytes(rc);
+  if (options.pose_register_every > 0) {
+    RegisterOptions ro;
+    ro.max_iterations_per_level = 10;
+    Expected<std::unique_ptr<Registrar>> reg = Registrar::create(d.model, max_w, max_h, ro, pool, d.kernels, cap);
+    if (!reg.ok()) return reg.status();
+    d.registrar = std::move(reg).value();
+    bytes += d.registrar->planned_bytes();
+  }
   bytes += uint64_t(d.model.positions.size() + d.model.offsets.size() + d.model.log_scales.size() +
                     d.model.features.size() + d.model.image_raw.size()) * 4;
   for (const ParamGroup& g : d.groups) bytes += uint64_t(g.grad.size() * 3) * 4;
@@ -503,14 +535,20 @@ Status Trainer::step(IterationStats* stats) {
     d.adjust_anchors();
     adjusted = true;
   }
-  if (d.paper() && d.opt.image_feature_refresh > 0 && it % d.opt.image_feature_refresh == 0)
-    d.bank.compute(d.model.positions.data(), d.model.anchor_count, d.model.image_raw.data(), d.pool);
+  bool refresh = d.paper() && d.opt.image_feature_refresh > 0 && it % d.opt.image_feature_refresh == 0;
+  int moved = -1;
+  if (d.registrar && it % d.opt.pose_register_every == 0 && it <= d.opt.pose_register_until) {
+    GS_RETURN_IF_ERROR(d.register_all(it, &moved));
+    refresh = refresh || (d.paper() && moved > 0);
+  }
+  if (refresh) d.bank.compute(d.model.positions.data(), d.model.anchor_count, d.model.image_raw.data(), d.pool);
   d.iteration = it;
   if (stats) {
     stats->iteration = it;
     stats->view = vi;
     stats->step = res;
     stats->downscale = scale;
+    stats->poses_registered = moved;
     const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height) * 3;
     double se = 0;
     for (size_t i = 0; i < n; ++i) {

@@ -85,10 +85,12 @@ const Fixture& fixture() {
   return f;
 }
 
-TEST_CASE("register: Gauss-Newton recovers the pose from a 5 degree and 5 percent start") {
+TEST_CASE("register: keyframe alignment and Gauss-Newton recover the pose from a 5 degree and 5 percent start") {
   const Fixture& f = fixture();
   platform::ThreadPool pool(2);
+  for (RegisterOptions::Solver solver : {RegisterOptions::kKeyframe, RegisterOptions::kGaussNewton}) {
   RegisterOptions opt;
+  opt.solver = solver;
   auto reg = Registrar::create(f.model, kW, kH, opt, &pool);
   REQUIRE(reg.ok());
   for (uint64_t seed : {1, 2, 3}) {
@@ -96,7 +98,7 @@ TEST_CASE("register: Gauss-Newton recovers the pose from a 5 degree and 5 percen
     RegisterResult r;
     REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, start, &r).ok());
     const double rot = pose::rotation_error_deg(r.pose, f.truth.pose), tr = f.centre_error(r.pose);
-    MESSAGE("seed " << seed << ": " << std::string(verdict_name(r.verdict)) << ", rotation error " << rot << " deg, centre error " << tr
+    MESSAGE((solver == RegisterOptions::kKeyframe ? "keyframe" : "gauss-newton") << " seed " << seed << ": " << std::string(verdict_name(r.verdict)) << ", rotation error " << rot << " deg, centre error " << tr
                     << ", RMSE " << r.initial_rmse << " -> " << r.final_rmse << ", " << r.iterations << " iterations, "
                     << r.levels << " levels, " << r.milliseconds << " ms");
     CHECK(r.converged());
@@ -104,6 +106,7 @@ TEST_CASE("register: Gauss-Newton recovers the pose from a 5 degree and 5 percen
     CHECK(rot < 0.1);
     CHECK(tr < 0.01 * 6.0);
     CHECK(r.final_rmse < r.initial_rmse);
+  }
   }
 }
 
@@ -126,7 +129,7 @@ TEST_CASE("register: Adam reduces a 3 degree error and keeps the best pose") {
 TEST_CASE("register: the registration loop allocates nothing after set-up") {
   const Fixture& f = fixture();
   platform::ThreadPool pool(2);
-  for (RegisterOptions::Solver solver : {RegisterOptions::kGaussNewton, RegisterOptions::kAdam}) {
+  for (RegisterOptions::Solver solver : {RegisterOptions::kKeyframe, RegisterOptions::kGaussNewton, RegisterOptions::kAdam}) {
     RegisterOptions opt;
     opt.solver = solver;
     opt.adam_iterations_per_level = 10;

@@ -4,9 +4,15 @@
 // coarse to fine on a box pyramid of the image, with early stopping, the best pose kept, and a
 // verdict per view.
 //
-// Two solvers, same pyramid and stopping rules:
+// Three solvers, same pyramid and stopping rules:
+//   kKeyframe:    (default) render the model once at the current pose with depth (a keyframe), then
+//                 align the image to it directly: Levenberg-Marquardt on the twist, warping keyframe
+//                 pixels by their depth, coarse to fine on box pyramids of both (cost per step is
+//                 per pixel, not per Gaussian, and both pyramids are properly filtered); re-render
+//                 and repeat, then polish with kGaussNewton steps at the finest level;
 //   kGaussNewton: Levenberg-Marquardt on the 6-DoF left twist with the renderer's analytic
-//                 forward-mode pose Jacobian (J^T W J, J^T W r; Huber-weighted residuals);
+//                 forward-mode pose Jacobian (J^T W J, J^T W r; Huber-weighted residuals) at
+//                 every level;
 //   kAdam:        Adam on the L1 photometric loss with the rasteriser's pose gradient (the
 //                 reference code's method, with a learning-rate decay per level).
 // Per level, the neural Gaussians are decoded once at the level's starting pose (colours depend
@@ -32,9 +38,12 @@ namespace gs::simd { struct KernelTable; }
 namespace gs::model {
 
 struct RegisterOptions {
-  enum Solver { kGaussNewton, kAdam } solver = kGaussNewton;
+  enum Solver { kKeyframe, kGaussNewton, kAdam } solver = kKeyframe;
+  int keyframes = 3;             // kKeyframe: renders (outer rounds) before the polish
+  int keyframe_iterations = 15;  // kKeyframe: LM steps per pyramid level per keyframe
+  int polish_iterations = 5;     // kKeyframe: renderer LM steps at the finest level at the end
   int finest_downscale = 1;      // resolution divisor of the last level (1: full, 4: quarter)
-  int min_coarse_width = 40;     // the coarsest level is the largest halving at least this wide, px
+  int min_coarse_width = 24;     // the coarsest level is the largest halving at least this wide, px
   int max_levels = 4;            // at most this many levels
   int max_iterations_per_level = 20;  // LM; Adam uses adam_iterations_per_level
   int adam_iterations_per_level = 100;
@@ -42,7 +51,7 @@ struct RegisterOptions {
   float huber_delta = 0.1f;      // per-pixel residual norm beyond which the weight falls as 1/|r|
   // Stopping: a level ends when an accepted step moves less than these (rad; x scene extent) or the
   // cost falls by a relative amount below min_relative_decrease.
-  double min_step_rotation = 2e-5, min_step_translation = 2e-5, min_relative_decrease = 1e-5;
+  double min_step_rotation = 1e-4, min_step_translation = 1e-4, min_relative_decrease = 1e-4;
   double adam_lr_rotation = 2e-3, adam_lr_translation = 2e-3;  // rad; x scene extent
   // Verdict: converged when the final photometric RMSE (over colour values in [0, 1]) is at most
   // max_rmse, the render explains at least min_explained of the image's variance (1 - MSE / Var:
@@ -77,11 +86,13 @@ struct RegisterResult {
 
 class Registrar {
  public:
-  // Plans for the model's anchors and images up to max_width x max_height (the full resolution;
-  // levels are smaller). The model must stay alive and unchanged while the registrar is used.
+  // Plans for the model's anchors (or plan_anchor_rows, for a model that will grow, e.g. during
+  // training) and images up to max_width x max_height (the full resolution; levels are smaller).
+  // The model must stay alive while the registrar is used; it is read (not copied) at every call.
   static Expected<std::unique_ptr<Registrar>> create(const HybridModel& model, int max_width, int max_height,
                                                      const RegisterOptions& options, platform::ThreadPool* pool,
-                                                     const simd::KernelTable* kernels = nullptr);
+                                                     const simd::KernelTable* kernels = nullptr,
+                                                     size_t plan_anchor_rows = 0);
   ~Registrar();
 
   // Registers one RGB image [H, W, 3] (8-bit) seen by a camera with intrinsics intr (full

@@ -51,9 +51,15 @@ struct TrainOptions {
   // extent; linear warm-up over pose_warmup iterations, then log-linear decay to the final rate at
   // schedule_iterations.
   bool optimize_poses = false;
-  double lr_pose_rotation_init = 1e-2, lr_pose_rotation_final = 1e-4;
-  double lr_pose_translation_init = 1e-2, lr_pose_translation_final = 1e-4;
+  double lr_pose_rotation_init = 2e-3, lr_pose_rotation_final = 1e-5;
+  double lr_pose_translation_init = 2e-3, lr_pose_translation_final = 1e-5;
   int pose_warmup = 100;
+  // Registration passes (block-coordinate bundle adjustment): every pose_register_every iterations
+  // up to pose_register_until, each training pose is registered against the current (frozen)
+  // model with Levenberg-Marquardt, coarse to fine down to the current training resolution, and
+  // kept when it fits its image better; Adam moments of a moved pose are reset. 0: never.
+  int pose_register_every = 0;
+  int pose_register_until = 0;
   // Coarse to fine: the first coarse_fraction of the iterations render and compare at reduced
   // resolution, coarse_levels halvings spread evenly over it (2: 1/4 then 1/2), then full resolution.
   int coarse_levels = 0;
@@ -70,6 +76,7 @@ struct IterationStats {
   double seconds = 0;      // wall time of this iteration
   bool adjusted = false;   // anchors were grown / pruned this iteration
   int downscale = 1;       // resolution divisor of this iteration (coarse to fine)
+  int poses_registered = -1;  // poses moved by a registration pass this iteration (-1: no pass)
 };
 
 class Trainer {

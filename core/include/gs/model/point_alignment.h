@@ -1,0 +1,52 @@
+// SPDX-License-Identifier: MIT
+// Photometric alignment of noisy camera poses to the SfM points, before (and independently of) any
+// trained model: the first stage of hbgs's pose optimisation (ALGORITHM.md Part A item 7, "aim
+// higher"). The SfM points are the anchors' positions, so they already sit in the true frame; a
+// pose is right when the colours its image shows at the projections of the points agree with what
+// the other views show there. Per view, Gauss-Newton (Levenberg-Marquardt) on the left twist of the
+// pose minimises the Huber-weighted difference between its bilinear colour samples and the
+// leave-one-out mean colour of each point over the other views, the means being recomputed between
+// rounds (block-coordinate photometric bundle adjustment with fixed structure). Coarse to fine on
+// box pyramids of the images widens the basin; occluded points are excluded by a per-view point
+// z-buffer.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "gs/camera.h"
+#include "gs/io/image.h"
+#include "gs/status.h"
+
+namespace gs::platform { class ThreadPool; }
+
+namespace gs::model {
+
+struct PointAlignOptions {
+  int max_levels = 4;            // pyramid levels (each halves), coarsest at least min_width wide
+  int min_width = 32;            // px
+  int rounds_per_level = 6;      // mean-colour / pose alternations per level
+  int gn_iterations = 4;         // Levenberg-Marquardt steps per view per round
+  double huber = 0.1;            // colour residual norm beyond which weights fall as 1/|r|
+  size_t max_points = 20000;     // points used (an even subsample of larger clouds)
+  double occlusion_tolerance = 0.03;  // a point is visible if z <= (1 + tol) x the z-buffer depth
+};
+
+struct PointAlignReport {
+  int levels = 0, rounds = 0;
+  size_t points_used = 0;
+  double initial_cost = 0, final_cost = 0;  // mean Huber cost per residual at the finest level
+  double seconds = 0;
+};
+
+// Aligns cameras[i] (in place; intrinsics unchanged) to the points [n, 3] using images[i] (RGB,
+// the cameras' size). With point colours rgb [n, 3] (the SfM reconstruction's, as 3DGS uses to
+// initialise its Gaussians), each view is aligned to those fixed colours (no consensus needed, so
+// views cannot drag each other along); without, to the leave-one-out mean over the other views.
+// Errors: size mismatches, fewer than 2 views or 10 points.
+Status align_poses_to_points(const float* xyz, const uint8_t* rgb, size_t n, const std::vector<const io::Image8*>& images,
+                             std::vector<Camera>* cameras, const PointAlignOptions& options, platform::ThreadPool* pool,
+                             PointAlignReport* report);
+
+}  // namespace gs::model

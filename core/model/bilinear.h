@@ -1,0 +1,53 @@
+// SPDX-License-Identifier: MIT
+// Private to gs_model: bilinear colour sampling with derivatives, used by the direct image
+// alignment of registration and by the point alignment of training poses.
+#pragma once
+
+#include <cstddef>
+
+namespace gs::model::detail {
+
+// RGB float image [h, w, 3] view.
+struct RgbView {
+  const float* rgb = nullptr;
+  int w = 0, h = 0;
+};
+
+// Bilinear colour c and its derivatives cu, cv w.r.t. the continuous pixel position (u, v), pixel
+// centres at i + 0.5. False when the 2 x 2 neighbourhood leaves the image.
+inline bool sample_bilinear(const RgbView& im, double u, double v, double c[3], double cu[3], double cv[3]) {
+  const double x = u - 0.5, y = v - 0.5;
+  if (!(x >= 0.0 && y >= 0.0 && x < double(im.w - 1) && y < double(im.h - 1))) return false;
+  const int x0 = int(x), y0 = int(y);
+  const double fx = x - x0, fy = y - y0;
+  const float* p00 = im.rgb + (size_t(y0) * size_t(im.w) + size_t(x0)) * 3;
+  const float* p10 = p00 + 3;
+  const float* p01 = p00 + size_t(im.w) * 3;
+  const float* p11 = p01 + 3;
+  for (int k = 0; k < 3; ++k) {
+    const double a = p00[k], b = p10[k], d = p01[k], e = p11[k];
+    c[k] = (1 - fy) * ((1 - fx) * a + fx * b) + fy * ((1 - fx) * d + fx * e);
+    cu[k] = (1 - fy) * (b - a) + fy * (e - d);
+    cv[k] = (1 - fx) * (d - a) + fx * (e - b);
+  }
+  return true;
+}
+
+// d(u, v) / d(left twist) of the projection of camera-space point m through (fx, fy):
+// du = fx / z [1, 0, -x / z] dm, dv = fy / z [0, 1, -y / z] dm, dm/dxi = [I | -[m]x].
+inline void projection_twist_jacobian(const double m[3], double fx, double fy, double du[6], double dv[6]) {
+  const double iz = 1.0 / m[2];
+  const double du_dm[3] = {fx * iz, 0, -fx * m[0] * iz * iz};
+  const double dv_dm[3] = {0, fy * iz, -fy * m[1] * iz * iz};
+  const double dm[6][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, -m[2], m[1]}, {m[2], 0, -m[0]}, {-m[1], m[0], 0}};
+  for (int j = 0; j < 6; ++j) {
+    du[j] = du_dm[0] * dm[j][0] + du_dm[1] * dm[j][1] + du_dm[2] * dm[j][2];
+    dv[j] = dv_dm[0] * dm[j][0] + dv_dm[1] * dm[j][1] + dv_dm[2] * dm[j][2];
+  }
+}
+
+// Huber cost and IRLS weight of a residual norm r.
+inline double huber_cost(double r, double delta) { return r <= delta ? 0.5 * r * r : delta * (r - 0.5 * delta); }
+inline double huber_weight(double r, double delta) { return r <= delta ? 1.0 : delta / r; }
+
+}  // namespace gs::model::detail
