@@ -69,6 +69,7 @@ struct Setting {
   std::string solver, budget;
   model::RegisterOptions::Solver kind;
   int lm_iterations, adam_iterations;  // per level
+  int keyframe_iterations, keyframes;  // kKeyframe: LM steps per level per keyframe, keyframes
 };
 
 struct Row {  // one view under one setting and start error
@@ -94,7 +95,7 @@ std::string f(const char* format, double v) { return svg::num(v, format); }
 int run(int argc, char** argv) {
   CLI::App app{"bench_register: registration time against accuracy over start errors, solvers and budgets"};
   std::string model_path, dataset, out_dir, json_path, save_model_path;
-  std::string init_list = "1,2,5,10,20", solver_list = "lm,adam", budget_list = "small,default";
+  std::string init_list = "1,2,5,10,20", solver_list = "keyframe,lm,adam", budget_list = "small,default";
   int max_width = -1, train_iterations = 0, downscale = 4, threads = 0;
   uint64_t seed = 0;
   app.add_option("--model", model_path, "run folder (from hbgs train) or .hbgs model file");
@@ -108,8 +109,8 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(1, 64));
   app.add_option("--init-errors", init_list, "start rotation errors in degrees (translation: deg/100 of the radius)")
       ->capture_default_str();
-  app.add_option("--solvers", solver_list, "lm and/or adam")->capture_default_str();
-  app.add_option("--budgets", budget_list, "small (LM 5 / Adam 25 iterations per level) and/or default (20 / 100)")
+  app.add_option("--solvers", solver_list, "keyframe, lm and/or adam")->capture_default_str();
+  app.add_option("--budgets", budget_list, "small (keyframe 2 x 5 / LM 5 / Adam 25 iterations per level) and/or default (3 x 15 / 20 / 100)")
       ->capture_default_str();
   app.add_option("--seed", seed, "pose-noise seed (and the training seed)")->capture_default_str();
   app.add_option("--threads", threads, "worker threads (0: all CPUs)")->capture_default_str();
@@ -127,12 +128,15 @@ int run(int argc, char** argv) {
       inits.push_back(d);
     }
     for (const std::string& so : split_list(solver_list)) {
-      if (so != "lm" && so != "adam") throw std::invalid_argument("solver '" + so + "' is not lm or adam");
+      if (so != "keyframe" && so != "lm" && so != "adam")
+        throw std::invalid_argument("solver '" + so + "' is not keyframe, lm or adam");
       for (const std::string& b : split_list(budget_list)) {
         if (b != "small" && b != "default") throw std::invalid_argument("budget '" + b + "' is not small or default");
         const bool small = b == "small";
-        settings.push_back({so, b, so == "lm" ? model::RegisterOptions::kGaussNewton : model::RegisterOptions::kAdam,
-                            small ? 5 : 20, small ? 25 : 100});
+        const model::RegisterOptions::Solver kind = so == "lm"         ? model::RegisterOptions::kGaussNewton
+                                                    : so == "adam"     ? model::RegisterOptions::kAdam
+                                                                       : model::RegisterOptions::kKeyframe;
+        settings.push_back({so, b, kind, small ? 5 : 20, small ? 25 : 100, small ? 5 : 15, small ? 2 : 3});
       }
     }
   } catch (const std::exception& e) {
@@ -245,6 +249,8 @@ int run(int argc, char** argv) {
     o.solver = s.kind;
     o.max_iterations_per_level = s.lm_iterations;
     o.adam_iterations_per_level = s.adam_iterations;
+    o.keyframe_iterations = s.keyframe_iterations;
+    o.keyframes = s.keyframes;
     for (double deg : inits) {
       pose::PoseNoise noise;
       noise.kind = pose::PoseNoise::kFixed;

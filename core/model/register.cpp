@@ -311,14 +311,17 @@ struct Registrar::Impl {
   // kKeyframe: keyframes at the current pose, each aligned coarse to fine; returns the new pose.
   Status keyframe_alignment(Camera* full, const uint8_t* image, int coarsest, int finest, int* iterations, int* levels,
                             double deadline) {
-    const Camera kcam = scaled_camera(*full, finest);
+    // The keyframe is rendered at twice the finest level's resolution (when the image has it) and
+    // box-filtered down, so that no level sees the aliasing of sub-pixel Gaussians.
+    const int key_scale = std::max(1, finest / 2);
+    const Camera kcam = scaled_camera(*full, key_scale);
     const int kw = kcam.intr.width, kh = kcam.intr.height;
     for (int k = 0; k < opt.keyframes; ++k) {
       if (deadline > 0 && platform::now_seconds() > deadline) break;
-      GS_RETURN_IF_ERROR(render_keyframe(*full, finest));
+      GS_RETURN_IF_ERROR(render_keyframe(*full, key_scale));
       Pose rel;  // identity: keyframe camera -> target camera
       for (int s = coarsest; s >= finest; s /= 2) {
-        const int f = s / finest;
+        const int f = s / key_scale;
         const PinholeIntrinsics in = scaled_camera(kcam, f).intr;
         box_down(key_rgb.data(), kw, kh, 3, f, lvl_rgb.data());
         box_down(key_depth.data(), kw, kh, 1, f, lvl_depth.data());
@@ -488,7 +491,9 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
     // Polish against the renderer itself (occlusion and view-dependent colour) at the finest level.
     Camera level = scaled_camera(current, finest);
     io::box_downsample_rgb(rgb, intr.width, intr.height, finest, d.target.data());
-    if (d.decode(current) > 0 && o.polish_iterations > 0 && !(deadline > 0 && platform::now_seconds() > deadline)) {
+    // (Only at full resolution: below it the direct render aliases sub-pixel Gaussians, which
+    // would bias the polish; the keyframes are anti-aliased.)
+    if (finest == 1 && d.decode(current) > 0 && o.polish_iterations > 0 && !(deadline > 0 && platform::now_seconds() > deadline)) {
       RegisterOptions saved = d.opt;
       d.opt.max_iterations_per_level = o.polish_iterations;
       const Status st = d.level_gauss_newton(level, &out->iterations, deadline);

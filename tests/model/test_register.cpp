@@ -98,7 +98,7 @@ TEST_CASE("register: keyframe alignment and Gauss-Newton recover the pose from a
     RegisterResult r;
     REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, start, &r).ok());
     const double rot = pose::rotation_error_deg(r.pose, f.truth.pose), tr = f.centre_error(r.pose);
-    MESSAGE((solver == RegisterOptions::kKeyframe ? "keyframe" : "gauss-newton") << " seed " << seed << ": " << std::string(verdict_name(r.verdict)) << ", rotation error " << rot << " deg, centre error " << tr
+    MESSAGE(std::string(solver == RegisterOptions::kKeyframe ? "keyframe" : "gauss-newton") << " seed " << seed << ": " << std::string(verdict_name(r.verdict)) << ", rotation error " << rot << " deg, centre error " << tr
                     << ", RMSE " << r.initial_rmse << " -> " << r.final_rmse << ", " << r.iterations << " iterations, "
                     << r.levels << " levels, " << r.milliseconds << " ms");
     CHECK(r.converged());

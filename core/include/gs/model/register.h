@@ -41,10 +41,10 @@ struct RegisterOptions {
   enum Solver { kKeyframe, kGaussNewton, kAdam } solver = kKeyframe;
   int keyframes = 3;             // kKeyframe: renders (outer rounds) before the polish
   int keyframe_iterations = 15;  // kKeyframe: LM steps per pyramid level per keyframe
-  int polish_iterations = 5;     // kKeyframe: renderer LM steps at the finest level at the end
+  int polish_iterations = 3;     // kKeyframe: renderer LM steps at the finest level at the end
   int finest_downscale = 1;      // resolution divisor of the last level (1: full, 4: quarter)
-  int min_coarse_width = 24;     // the coarsest level is the largest halving at least this wide, px
-  int max_levels = 4;            // at most this many levels
+  int min_coarse_width = 12;     // the coarsest level is the largest halving at least this wide, px
+  int max_levels = 6;            // at most this many levels
   int max_iterations_per_level = 20;  // LM; Adam uses adam_iterations_per_level
   int adam_iterations_per_level = 100;
   double time_budget_ms = 0;     // > 0: stop (keeping the best pose) when exceeded
@@ -58,7 +58,7 @@ struct RegisterOptions {
   // an image of something else, or with no contrast at all, explains nothing), the model covers
   // at least min_coverage of the image (mean opacity of the render), and the pose moved at most
   // max_rotation_deg / max_translation (x scene extent) from the start.
-  double max_rmse = 0.12, min_explained = 0.5, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
+  double max_rmse = 0.09, min_explained = 0.5, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
 };
 
 enum class RegisterVerdict {
