@@ -80,13 +80,22 @@ struct Registrar::Impl {
   uint64_t bytes = 0;
   double extent = 1;
 
+
+  void allocate_images() {
+    const size_t px = size_t(max_w) * size_t(max_h) * 3, npx = size_t(max_w) * size_t(max_h);
+    for (auto* v : {&target, &rgb, &v_rgb, &key_rgb, &lvl_rgb}) v->assign(px, 0.0f);
+    for (auto* v : {&key_depth, &key_alpha, &lvl_depth, &lvl_alpha}) v->assign(npx, 0.0f);
+  }
+  uint64_t image_bytes() const { return uint64_t(max_w) * uint64_t(max_h) * (5 * 3 + 4) * 4; }
+
   // Decodes the model's Gaussians for a pose (colours for its view direction).
   size_t decode(const Camera& cam) {
     size_t V = 0;
     return decode_view(backend, frozen_params(*model), decode_camera(cam), ws, &V);
   }
 
-  Status render(const Camera& cam) {
+  // The Gaussians of the last decode, as the renderer takes them.
+  GaussianParams gaussians() const {
     GaussianParams gp;
     gp.count = ws.ng.count;
     gp.means = ws.ng.means;
@@ -94,6 +103,11 @@ struct Registrar::Impl {
     gp.quats = ws.ng.quats;
     gp.opacities = ws.ng.opacities;
     gp.colors = ws.ng.colors;
+    return gp;
+  }
+
+  Status render(const Camera& cam) {
+    const GaussianParams gp = gaussians();
     RenderOptions ro;
     ro.validate_inputs = false;  // decoded values are finite by construction
     return renderer.forward(cam, gp, ro, rgb.data());
@@ -200,13 +214,7 @@ struct Registrar::Impl {
   Status render_keyframe(const Camera& full, int finest) {
     const Camera cam = scaled_camera(full, finest);
     decode(full);
-    GaussianParams gp;
-    gp.count = ws.ng.count;
-    gp.means = ws.ng.means;
-    gp.log_scales = ws.ng.log_scales;
-    gp.quats = ws.ng.quats;
-    gp.opacities = ws.ng.opacities;
-    gp.colors = ws.ng.colors;
+    const GaussianParams gp = gaussians();
     RenderOptions ro;
     ro.validate_inputs = false;
     ro.depth = true;
@@ -432,15 +440,8 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const HybridModel& model,
   d.backend.init(&d.renderer, d.kernels, pool, max_params, max_width);
   const ModelParamsT<float> p = frozen_params(model);
   d.ws.reserve(cap, model.config.k, p.shapes, p.image_feature_dim, 1, 1);
-  const size_t px = size_t(max_width) * size_t(max_height) * 3;
-  d.target.assign(px, 0.0f);
-  d.rgb.assign(px, 0.0f);
-  d.v_rgb.assign(px, 0.0f);
-  const size_t npx = size_t(max_width) * size_t(max_height);
-  d.key_rgb.assign(px, 0.0f);
-  d.lvl_rgb.assign(px, 0.0f);
-  for (auto* v : {&d.key_depth, &d.key_alpha, &d.lvl_depth, &d.lvl_alpha}) v->assign(npx, 0.0f);
-  d.bytes = Renderer::plan_bytes(rc) + uint64_t(px) * 20 + uint64_t(npx) * 16 +
+  d.allocate_images();
+  d.bytes = Renderer::plan_bytes(rc) + d.image_bytes() +
             uint64_t(d.ws.X.size() * 3 + d.ws.means.size() * 4 + d.ws.quats.size() * 2) * 4;
   return r;
 }
