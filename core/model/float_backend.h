@@ -10,11 +10,32 @@
 
 #include "gs/model/decode.h"
 #include "gs/model/hybrid_model.h"
+#include "gs/model/step_graph.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/render.h"
 #include "gs/simd/kernel_table.h"
 
 namespace gs::model::detail {
+
+// The step graph's view of a model's live anchors and MLPs.
+inline ModelParamsT<float> model_params(const HybridModel& model) {
+  ModelParamsT<float> p;
+  const bool paper = model.config.image_features == ImageFeatureMode::kPaper;
+  p.anchors.count = model.anchor_count;
+  p.anchors.k = model.config.k;
+  p.anchors.feature_dim = model.config.feature_dim;
+  p.anchors.positions = model.positions.data();
+  p.anchors.offsets = model.offsets.data();
+  p.anchors.log_scales = model.log_scales.data();
+  p.anchors.features = model.features.data();
+  p.image_raw = paper ? model.image_raw.data() : nullptr;
+  p.image_feature_dim = paper ? model.config.image_feature_dim : 0;
+  for (int i = 0; i < kMlpCount; ++i) {
+    p.mlp[i] = model.mlps[i].params.empty() ? nullptr : model.mlps[i].params.data();
+    p.shapes[i] = model.mlps[i].shape;
+  }
+  return p;
+}
 
 class FloatBackend {
  public:
@@ -145,5 +166,29 @@ class FloatBackend {
   size_t max_mlp_params_ = 0;
   int replans_ = 0;
 };
+
+// Plans what rendering a model takes, for `rows` anchor rows and images up to max_width x
+// max_height: the renderer (k Gaussians per row, 8 tile pairs each before a re-plan), the float
+// backend and a step workspace whose image buffers are ws_width x ws_height. Returns the renderer's
+// capacity (for the byte count).
+inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, size_t rows, int max_width, int max_height,
+                                                    int ws_width, int ws_height, platform::ThreadPool* pool,
+                                                    const simd::KernelTable* kernels, Renderer* renderer,
+                                                    FloatBackend* backend, StepWorkspace<float>* ws) {
+  const size_t K = size_t(model.config.k);
+  RenderCapacity rc;
+  rc.max_gaussians = rows * K;
+  rc.max_isects = rows * K * 8;
+  rc.max_width = max_width;
+  rc.max_height = max_height;
+  rc.max_sh_degree = 0;
+  GS_RETURN_IF_ERROR(renderer->init(rc, pool, kernels));
+  size_t max_params = 0;
+  for (const Mlp& m : model.mlps) max_params = std::max(max_params, m.params.size());
+  backend->init(renderer, kernels, pool, max_params, max_width);
+  const ModelParamsT<float> p = model_params(model);
+  ws->reserve(rows, model.config.k, p.shapes, p.image_feature_dim, ws_width, ws_height);
+  return rc;
+}
 
 }  // namespace gs::model::detail

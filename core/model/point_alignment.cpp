@@ -2,11 +2,10 @@
 // Photometric alignment of camera poses to fixed SfM points (see gs/model/point_alignment.h).
 #include "gs/model/point_alignment.h"
 
-#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 
-#include "bilinear.h"
+#include "pose_solve.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose.h"
@@ -126,8 +125,8 @@ struct Aligner {
   // Mean Huber cost of view v at pose (R, t) over the points it saw at the round's start (a point
   // that leaves the image counts as a full-delta residual, so leaving is not a way to lower it);
   // optionally the normal equations.
-  double cost(size_t v, const double R[9], const double t[3], Eigen::Matrix<double, 6, 6>* A,
-              Eigen::Matrix<double, 6, 1>* b) const {
+  double cost(size_t v, const double R[9], const double t[3], detail::Mat6* A,
+              detail::Vec6* b) const {
     const double delta = opt->huber;
     double total = 0;
     size_t used = 0;
@@ -167,24 +166,16 @@ struct Aligner {
     Pose& pose = (*cameras)[v].pose;
     double R[9], t[3];
     pose_to_double(pose, R, t);
-    Eigen::Matrix<double, 6, 6> A;
-    Eigen::Matrix<double, 6, 1> b;
+    detail::Mat6 A;
+    detail::Vec6 b;
     double c = cost(v, R, t, &A, &b);
     double lambda = 1e-2;
     for (int it = 0; it < opt->gn_iterations; ++it) {
       bool accepted = false;
       for (int attempt = 0; attempt < 6 && !accepted; ++attempt) {
-        Eigen::Matrix<double, 6, 6> Ad = A;
-        for (int d = 0; d < 6; ++d) Ad(d, d) += lambda * A(d, d) + 1e-12 * (A.trace() + 1e-30);
-        const Eigen::Matrix<double, 6, 1> x = Ad.ldlt().solve(-b);
+        // Trust region: at most 1 degree and 1 % of the scene radius per step.
         double xi[6];
-        for (int d = 0; d < 6; ++d) xi[d] = std::isfinite(x(d)) ? x(d) : 0.0;
-        // Trust region: at most 1 degree and 1 % of the scene radius per step, so a flat blurred
-        // cost cannot send a pose far in one jump.
-        const double rn = std::sqrt(xi[3] * xi[3] + xi[4] * xi[4] + xi[5] * xi[5]);
-        const double tn = std::sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
-        const double shrink = std::min({1.0, 0.01745 / std::max(rn, 1e-30), 0.01 * radius / std::max(tn, 1e-30)});
-        for (double& e : xi) e *= shrink;
+        detail::damped_step(A, b, lambda, 0.01745, 0.01 * radius, xi);
         Pose trial = pose;
         pose::apply_left_twist(xi, &trial);
         double Rt[9], tt[3];

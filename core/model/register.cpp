@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "bilinear.h"
+#include "pose_solve.h"
 #include "float_backend.h"
 #include "gs/io/image.h"
 #include "gs/model/step_graph.h"
@@ -29,25 +29,6 @@ const char* verdict_name(RegisterVerdict v) {
 }
 
 namespace {
-
-ModelParamsT<float> frozen_params(const HybridModel& model) {
-  ModelParamsT<float> p;
-  const bool paper = model.config.image_features == ImageFeatureMode::kPaper;
-  p.anchors.count = model.anchor_count;
-  p.anchors.k = model.config.k;
-  p.anchors.feature_dim = model.config.feature_dim;
-  p.anchors.positions = model.positions.data();
-  p.anchors.offsets = model.offsets.data();
-  p.anchors.log_scales = model.log_scales.data();
-  p.anchors.features = model.features.data();
-  p.image_raw = paper ? model.image_raw.data() : nullptr;
-  p.image_feature_dim = paper ? model.config.image_feature_dim : 0;
-  for (int i = 0; i < kMlpCount; ++i) {
-    p.mlp[i] = model.mlps[i].params.empty() ? nullptr : model.mlps[i].params.data();
-    p.shapes[i] = model.mlps[i].shape;
-  }
-  return p;
-}
 
 // The camera used to choose and decode anchors: the same pose with the image widened by a quarter
 // of its size on every side, so anchors just outside the view (which a moving pose brings in) are
@@ -91,7 +72,7 @@ struct Registrar::Impl {
   // Decodes the model's Gaussians for a pose (colours for its view direction).
   size_t decode(const Camera& cam) {
     size_t V = 0;
-    return decode_view(backend, frozen_params(*model), decode_camera(cam), ws, &V);
+    return decode_view(backend, detail::model_params(*model), decode_camera(cam), ws, &V);
   }
 
   // The Gaussians of the last decode, as the renderer takes them.
@@ -154,26 +135,18 @@ struct Registrar::Impl {
     double lambda = 1e-3;
     for (int it = 0; it < opt.max_iterations_per_level; ++it) {
       if (deadline > 0 && platform::now_seconds() > deadline) break;
-      Eigen::Matrix<double, 6, 6> A;
-      Eigen::Matrix<double, 6, 1> b;
+      detail::Mat6 A;
+      detail::Vec6 b;
       for (int r = 0; r < 6; ++r) {
-        b(r) = -ne.Jtr[r];
+        b(r) = ne.Jtr[r];
         for (int c = 0; c < 6; ++c) A(r, c) = ne.JtJ[6 * r + c];
       }
-      const double floor = 1e-12 * std::max(A.trace(), 1e-30);
       bool accepted = false;
       for (int attempt = 0; attempt < 8 && !accepted; ++attempt) {
-        Eigen::Matrix<double, 6, 6> Ad = A;
-        for (int d = 0; d < 6; ++d) Ad(d, d) += lambda * A(d, d) + floor;
-        const Eigen::Matrix<double, 6, 1> x = Ad.ldlt().solve(b);
-        double xi[6];
-        for (int d = 0; d < 6; ++d) xi[d] = std::isfinite(x(d)) ? x(d) : 0.0;
         // Trust region: at most 0.05 rad (3 deg) and 0.05 x extent per step, so a step cannot jump
         // over the basin into a look-alike view.
-        const double r = std::sqrt(xi[3] * xi[3] + xi[4] * xi[4] + xi[5] * xi[5]);
-        const double t = std::sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
-        const double shrink = std::min({1.0, 0.05 / std::max(r, 1e-30), 0.05 * extent / std::max(t, 1e-30)});
-        for (double& v : xi) v *= shrink;
+        double xi[6];
+        detail::damped_step(A, b, lambda, 0.05, 0.05 * extent, xi);
         Camera trial = cam;
         pose::apply_left_twist(xi, &trial.pose);
         GS_RETURN_IF_ERROR(render(trial));
@@ -228,8 +201,8 @@ struct Registrar::Impl {
   // Mean Huber cost of warping the level keyframe by rel (keyframe camera -> target camera) into
   // the level target, and optionally the normal equations. Keyframe pixels with alpha < 0.5 are
   // skipped; one that warps outside the target costs a full-delta residual.
-  double warp_cost(const PinholeIntrinsics& in, const Pose& rel, Eigen::Matrix<double, 6, 6>* A,
-                   Eigen::Matrix<double, 6, 1>* b) const {
+  double warp_cost(const PinholeIntrinsics& in, const Pose& rel, detail::Mat6* A,
+                   detail::Vec6* b) const {
     const double delta = opt.huber_delta;
     const detail::RgbView tgt{target.data(), in.width, in.height};
     double R[9], t[3];
@@ -279,8 +252,8 @@ struct Registrar::Impl {
 
   // Direct alignment of the target to the keyframe at one level; rel is updated in place.
   void align_level(const PinholeIntrinsics& in, Pose* rel, int* iterations, double deadline) {
-    Eigen::Matrix<double, 6, 6> A;
-    Eigen::Matrix<double, 6, 1> b;
+    detail::Mat6 A;
+    detail::Vec6 b;
     double c = warp_cost(in, *rel, &A, &b);
     if (!std::isfinite(c)) return;
     double lambda = 1e-3;
@@ -288,15 +261,8 @@ struct Registrar::Impl {
       if (deadline > 0 && platform::now_seconds() > deadline) return;
       bool accepted = false;
       for (int attempt = 0; attempt < 6 && !accepted; ++attempt) {
-        Eigen::Matrix<double, 6, 6> Ad = A;
-        for (int d = 0; d < 6; ++d) Ad(d, d) += lambda * A(d, d) + 1e-12 * (A.trace() + 1e-30);
-        const Eigen::Matrix<double, 6, 1> x = Ad.ldlt().solve(-b);
         double xi[6];
-        for (int d = 0; d < 6; ++d) xi[d] = std::isfinite(x(d)) ? x(d) : 0.0;
-        const double r = std::sqrt(xi[3] * xi[3] + xi[4] * xi[4] + xi[5] * xi[5]);
-        const double t = std::sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
-        const double shrink = std::min({1.0, 0.05 / std::max(r, 1e-30), 0.05 * extent / std::max(t, 1e-30)});
-        for (double& v : xi) v *= shrink;
+        detail::damped_step(A, b, lambda, 0.05, 0.05 * extent, xi);
         Pose trial = *rel;
         pose::apply_left_twist(xi, &trial);
         const double ct = warp_cost(in, trial, nullptr, nullptr);
@@ -426,22 +392,13 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const HybridModel& model,
   d.max_w = max_width;
   d.max_h = max_height;
   d.extent = model.scene_extent;
-  const size_t cap = std::max(model.anchor_count, plan_anchor_rows), K = size_t(model.config.k);
+  const size_t cap = std::max(model.anchor_count, plan_anchor_rows);
   d.planned_rows = cap;
-  RenderCapacity rc;
-  rc.max_gaussians = cap * K;
-  rc.max_isects = cap * K * 8;
-  rc.max_width = max_width;
-  rc.max_height = max_height;
-  rc.max_sh_degree = 0;
-  GS_RETURN_IF_ERROR(d.renderer.init(rc, pool, d.kernels));
-  size_t max_params = 0;
-  for (const Mlp& m : model.mlps) max_params = std::max(max_params, m.params.size());
-  d.backend.init(&d.renderer, d.kernels, pool, max_params, max_width);
-  const ModelParamsT<float> p = frozen_params(model);
-  d.ws.reserve(cap, model.config.k, p.shapes, p.image_feature_dim, 1, 1);
+  Expected<RenderCapacity> rc = detail::plan_model_pipeline(model, cap, max_width, max_height, 1, 1, pool, d.kernels,
+                                                            &d.renderer, &d.backend, &d.ws);
+  if (!rc.ok()) return rc.status();
   d.allocate_images();
-  d.bytes = Renderer::plan_bytes(rc) + d.image_bytes() +
+  d.bytes = Renderer::plan_bytes(*rc) + d.image_bytes() +
             uint64_t(d.ws.X.size() * 3 + d.ws.means.size() * 4 + d.ws.quats.size() * 2) * 4;
   return r;
 }

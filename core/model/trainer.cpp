@@ -72,26 +72,6 @@ float cameras_extent(const std::vector<const Camera*>& cameras) {
 
 // ---- Trainer ----------------------------------------------------------------------------------
 
-static ModelParamsT<float> model_params(const HybridModel& model) {
-  ModelParamsT<float> p;
-  const bool paper = model.config.image_features == ImageFeatureMode::kPaper;
-  p.anchors.count = model.anchor_count;
-  p.anchors.k = model.config.k;
-  p.anchors.feature_dim = model.config.feature_dim;
-  p.anchors.positions = model.positions.data();
-  p.anchors.offsets = model.offsets.data();
-  p.anchors.log_scales = model.log_scales.data();
-  p.anchors.features = model.features.data();
-  p.image_raw = paper ? model.image_raw.data() : nullptr;
-  p.image_feature_dim = paper ? model.config.image_feature_dim : 0;
-  for (int i = 0; i < kMlpCount; ++i) {
-    p.mlp[i] = model.mlps[i].params.empty() ? nullptr : model.mlps[i].params.data();
-    p.shapes[i] = model.mlps[i].shape;
-  }
-  return p;
-}
-
-
 struct Trainer::Impl {
   HybridModel model;
   TrainOptions opt;
@@ -128,7 +108,7 @@ struct Trainer::Impl {
   int k() const { return model.config.k; }
   bool paper() const { return model.config.image_features == ImageFeatureMode::kPaper; }
 
-  ModelParamsT<float> params() const { return model_params(model); }
+  ModelParamsT<float> params() const { return detail::model_params(model); }
 
   void build_groups() {
     const ModelConfig& c = model.config;
@@ -466,18 +446,9 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   d.pose_steps.assign(train_views.size(), 0);
   if (d.paper()) GS_RETURN_IF_ERROR(d.bank.init(d.cameras, images));
   const size_t cap = d.cap(), K = size_t(d.k());
-  RenderCapacity rc;
-  rc.max_gaussians = cap * K;
-  rc.max_isects = cap * K * 8;
-  rc.max_width = max_w;
-  rc.max_height = max_h;
-  rc.max_sh_degree = 0;
-  GS_RETURN_IF_ERROR(d.renderer.init(rc, pool, d.kernels));
-  size_t max_params = 0;
-  for (const Mlp& m : d.model.mlps) max_params = std::max(max_params, m.params.size());
-  d.backend.init(&d.renderer, d.kernels, pool, max_params, max_w);
-  ModelParamsT<float> p = d.params();
-  d.ws.reserve(cap, d.k(), p.shapes, p.image_feature_dim, max_w, max_h);
+  Expected<RenderCapacity> rc = detail::plan_model_pipeline(d.model, cap, max_w, max_h, max_w, max_h, pool, d.kernels,
+                                                            &d.renderer, &d.backend, &d.ws);
+  if (!rc.ok()) return rc.status();
   d.target.assign(size_t(max_w) * size_t(max_h) * 3, 0.0f);
   d.build_groups();
   d.rng.state = options.seed * 0x9E3779B97F4A7C15ull + 7;
@@ -491,7 +462,7 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   d.cand.assign(cap * K, {CellKey{0, 0, 0}, 0u});
   d.pruned.assign(cap, 0);
   if (d.paper()) d.bank.compute(d.model.positions.data(), d.model.anchor_count, d.model.image_raw.data(), pool);
-  uint64_t bytes = Renderer::plan_bytes(rc);
+  uint64_t bytes = Renderer::plan_bytes(*rc);
   if (options.pose_register_every > 0) {
     RegisterOptions ro;
     ro.max_iterations_per_level = 10;
@@ -705,19 +676,10 @@ Status ModelRenderer::init(const HybridModel& model, int max_width, int max_heig
                            const simd::KernelTable* kernels) {
   GS_RETURN_IF_ERROR(model.config.validate());
   const simd::KernelTable* kt = kernels ? kernels : &simd::best_kernel_table();
-  const size_t cap = std::max<size_t>(model.anchor_count, 1), K = size_t(model.config.k);
-  RenderCapacity rc;
-  rc.max_gaussians = cap * K;
-  rc.max_isects = cap * K * 8;
-  rc.max_width = max_width;
-  rc.max_height = max_height;
-  rc.max_sh_degree = 0;
-  GS_RETURN_IF_ERROR(impl_->renderer.init(rc, pool, kt));
-  size_t max_params = 0;
-  for (const Mlp& m : model.mlps) max_params = std::max(max_params, m.params.size());
-  impl_->backend.init(&impl_->renderer, kt, pool, max_params, max_width);
-  ModelParamsT<float> p = model_params(model);
-  impl_->ws.reserve(cap, model.config.k, p.shapes, p.image_feature_dim, max_width, max_height);
+  const size_t cap = std::max<size_t>(model.anchor_count, 1);
+  Expected<RenderCapacity> rc = detail::plan_model_pipeline(model, cap, max_width, max_height, max_width, max_height, pool,
+                                                            kt, &impl_->renderer, &impl_->backend, &impl_->ws);
+  if (!rc.ok()) return rc.status();
   impl_->capacity = cap;
   return Status::Ok();
 }
@@ -726,7 +688,7 @@ Status ModelRenderer::render(const HybridModel& model, const Camera& camera, flo
   Impl& d = *impl_;
   if (model.anchor_count > d.capacity) return capacity_exceeded("model renderer: the model has more anchors than planned");
   GS_RETURN_IF_ERROR(validate_camera(camera));
-  ModelParamsT<float> p = model_params(model);
+  ModelParamsT<float> p = detail::model_params(model);
   size_t V = 0;
   const size_t N = decode_view(d.backend, p, camera, d.ws, &V);
   if (gaussians) *gaussians = N;

@@ -1,8 +1,13 @@
 // SPDX-License-Identifier: MIT
-// Private to gs_model: bilinear colour sampling with derivatives, used by the direct image
-// alignment of registration and by the point alignment of training poses.
+// Private to gs_model: what the pose solvers share (registration's keyframe and renderer
+// Levenberg-Marquardt, the point alignment of training poses): bilinear colour sampling with
+// derivatives, the projection's twist Jacobian, Huber weights and the damped, trust-region-limited
+// 6-DoF step.
 #pragma once
 
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 
 namespace gs::model::detail {
@@ -49,5 +54,24 @@ inline void projection_twist_jacobian(const double m[3], double fx, double fy, d
 // Huber cost and IRLS weight of a residual norm r.
 inline double huber_cost(double r, double delta) { return r <= delta ? 0.5 * r * r : delta * (r - 0.5 * delta); }
 inline double huber_weight(double r, double delta) { return r <= delta ? 1.0 : delta / r; }
+
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+// The Levenberg-Marquardt step xi = -(A + lambda diag(A) + eps I)^-1 b for normal equations A, b
+// (b = J^T W r), with non-finite entries zeroed, scaled down so the rotation is at most max_rot
+// radians and the translation at most max_trans (a trust region: a flat or blurred cost cannot
+// send the pose far in one jump). No allocation.
+inline void damped_step(const Mat6& A, const Vec6& b, double lambda, double max_rot, double max_trans, double xi[6]) {
+  Mat6 Ad = A;
+  const double eps = 1e-12 * (A.trace() + 1e-30);
+  for (int d = 0; d < 6; ++d) Ad(d, d) += lambda * A(d, d) + eps;
+  const Vec6 x = Ad.ldlt().solve(-b);
+  for (int d = 0; d < 6; ++d) xi[d] = std::isfinite(x(d)) ? x(d) : 0.0;
+  const double r = std::sqrt(xi[3] * xi[3] + xi[4] * xi[4] + xi[5] * xi[5]);
+  const double t = std::sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
+  const double shrink = std::min({1.0, max_rot / std::max(r, 1e-30), max_trans / std::max(t, 1e-30)});
+  for (int d = 0; d < 6; ++d) xi[d] *= shrink;
+}
 
 }  // namespace gs::model::detail
