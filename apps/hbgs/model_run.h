@@ -85,7 +85,7 @@ struct TrainArgs {
   bool point_align = true;  // with optimize_poses: align the poses to the SfM points first
   int register_passes = 0;  // with optimize_poses: registration passes over the first half
   int coarse_levels = -1;
-  double pose_lr = 2e-3;
+  double pose_lr = 5e-5;
   bool resume = false, force = false, quiet = false;
   std::vector<std::string> given;
 };

@@ -381,6 +381,10 @@ TEST_CASE("trainer: joint pose optimisation pulls noisy poses back towards the t
   o.coarse_levels = 1;
   o.schedule_iterations = 600;
   o.image_feature_refresh = 100;
+  // Large steps: this checks that the pose gradient moves poses the right way from 2 degrees (the
+  // CLI's small default rate is for refining poses that point alignment already brought close).
+  o.lr_pose_rotation_init = o.lr_pose_translation_init = 1e-2;
+  o.lr_pose_rotation_final = o.lr_pose_translation_final = 1e-4;
   platform::ThreadPool pool(2);
   auto t = Trainer::create(initial_model(config()), ptrs, o, &pool);
   REQUIRE(t.ok());
@@ -392,7 +396,7 @@ TEST_CASE("trainer: joint pose optimisation pulls noisy poses back towards the t
   const pose::PoseErrors after = pose::pose_errors(end.data(), truth.data(), truth.size(), radius, false);
   MESSAGE("rotation error " << before.rotation_mean_deg << " -> " << after.rotation_mean_deg << " deg, centre error "
                             << before.translation_mean_frac << " -> " << after.translation_mean_frac << " of the radius");
-  // Measured: 2 -> 1.56 deg and 3 -> 2.2 % here (8 views of 64 x 48 px leave the model room
+  // Measured: 2 -> 1.2 deg and 3 -> 1.8 % here (8 views of 64 x 48 px leave the model room
   // to absorb pose errors); the check asks for a clear pull towards the truth, not convergence.
   CHECK(after.rotation_mean_deg < 0.85 * before.rotation_mean_deg);
   CHECK(after.translation_mean_frac < 0.85 * before.translation_mean_frac);

@@ -51,8 +51,8 @@ struct TrainOptions {
   // extent; linear warm-up over pose_warmup iterations, then log-linear decay to the final rate at
   // schedule_iterations.
   bool optimize_poses = false;
-  double lr_pose_rotation_init = 2e-3, lr_pose_rotation_final = 1e-5;
-  double lr_pose_translation_init = 2e-3, lr_pose_translation_final = 1e-5;
+  double lr_pose_rotation_init = 5e-5, lr_pose_rotation_final = 1e-6;
+  double lr_pose_translation_init = 5e-5, lr_pose_translation_final = 1e-6;
   int pose_warmup = 100;
   // Registration passes (block-coordinate bundle adjustment): every pose_register_every iterations
   // up to pose_register_until, each training pose is registered against the current (frozen)
