@@ -37,6 +37,18 @@ inline ModelParamsT<float> model_params(const HybridModel& model) {
   return p;
 }
 
+// The renderer's view of decoded neural Gaussians (colours, no SH).
+inline GaussianParams gaussian_params(const NeuralGaussians<float>& ng) {
+  GaussianParams gp;
+  gp.count = ng.count;
+  gp.means = ng.means;
+  gp.log_scales = ng.log_scales;
+  gp.quats = ng.quats;
+  gp.opacities = ng.opacities;
+  gp.colors = ng.colors;
+  return gp;
+}
+
 class FloatBackend {
  public:
   static constexpr int kChunks = 8;        // fixed MLP row partition (thread-count independent)
@@ -93,13 +105,7 @@ class FloatBackend {
   }
 
   Status render_fwd(const Camera& cam, const NeuralGaussians<float>& ng, float* rgb) {
-    GaussianParams gp;
-    gp.count = ng.count;
-    gp.means = ng.means;
-    gp.log_scales = ng.log_scales;
-    gp.quats = ng.quats;
-    gp.opacities = ng.opacities;
-    gp.colors = ng.colors;
+    const GaussianParams gp = gaussian_params(ng);
     RenderOptions ro;
 #ifdef NDEBUG
     ro.validate_inputs = false;  // decoded values are finite by construction; debug builds check

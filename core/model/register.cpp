@@ -76,16 +76,7 @@ struct Registrar::Impl {
   }
 
   // The Gaussians of the last decode, as the renderer takes them.
-  GaussianParams gaussians() const {
-    GaussianParams gp;
-    gp.count = ws.ng.count;
-    gp.means = ws.ng.means;
-    gp.log_scales = ws.ng.log_scales;
-    gp.quats = ws.ng.quats;
-    gp.opacities = ws.ng.opacities;
-    gp.colors = ws.ng.colors;
-    return gp;
-  }
+  GaussianParams gaussians() const { return detail::gaussian_params(ws.ng); }
 
   Status render(const Camera& cam) {
     const GaussianParams gp = gaussians();
