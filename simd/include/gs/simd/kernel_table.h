@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "gs/simd/convert.h"
 #include "gs/simd/loss.h"
 #include "gs/simd/mlp.h"
 #include "gs/simd/splat.h"
@@ -35,6 +36,10 @@ using MlpBwdFn = void (*)(const MlpShape*, int32_t batch, const float* x, const 
                           const float* W2, const float* b2, const float* hidden, const float* y, const float* v_y,
                           float* v_x, float* v_W1, float* v_b1, float* v_W2, float* v_b2);
 using AdamStepFn = void (*)(const AdamParams*, size_t n, float* param, const float* grad, float* m, float* v);
+using YuyvToRgbFn = void (*)(int32_t width, int32_t height, const uint8_t* yuyv, int32_t yuyv_stride, uint8_t* rgb,
+                             int32_t rgb_stride);
+using Nv12ToRgbFn = void (*)(int32_t width, int32_t height, const uint8_t* y, int32_t y_stride, const uint8_t* uv,
+                             int32_t uv_stride, uint8_t* rgb, int32_t rgb_stride);
 
 struct KernelTable {
   const char* isa;  // "ref", "sse2", "avx2", "avx512", "neon64", "neon"
@@ -48,6 +53,8 @@ struct KernelTable {
   MlpFwdFn mlp_fwd;  // 2-layer decoder MLP over a batch of rows (mlp.h)
   MlpBwdFn mlp_bwd;
   AdamStepFn adam_step;  // one Adam update of n parameters (mlp.h)
+  YuyvToRgbFn yuyv_to_rgb;  // camera frames to RGB24, bit-identical across tables (convert.h)
+  Nv12ToRgbFn nv12_to_rgb;
 };
 
 // The reference table (always available).
