@@ -34,6 +34,9 @@ Command add_train_command(CLI::App& parent);
 Command add_eval_command(CLI::App& parent);
 Command add_demo_command(CLI::App& parent);
 Command add_register_command(CLI::App& parent);
+Command add_ingest_command(CLI::App& parent);
+Command add_capture_command(CLI::App& parent);
+Command add_compare_poses_command(CLI::App& parent);
 
 // `hbgs bench ARGS...` bypasses CLI11 (except `hbgs bench --help`): ARGS go to bench_render as given.
 bool bench_passes_through(int argc, char** argv);

@@ -55,6 +55,24 @@ gs::Expected<SynthSummary> generate_scene(const SynthOptions& options, const std
 // written qvec/tvec, and the images are rendered with them.
 std::vector<gs::Camera> make_cameras(const SynthOptions& options);
 
+// A continuous camera path through the scene, like a hand-held phone video: the camera sweeps
+// `sweep_deg` of azimuth in front of the scene (centred on the -y side) while its height and
+// distance drift smoothly and it looks at a slowly wandering point near the scene centre. Used to
+// test video ingestion end to end, where the recovered poses are compared with these.
+struct PathOptions {
+  uint64_t seed = 1;         // the scene (same seeds as SynthOptions)
+  int width = 320, height = 240;
+  int frames = 90;
+  double sweep_deg = 100.0;
+  int samples_per_axis = 2;
+  int threads = 0;
+};
+// Cameras of the path, in frame order; empty if the options are invalid.
+std::vector<gs::Camera> make_path_cameras(const PathOptions& options);
+// Writes out_dir/frames/frame_000000.png ... and the true poses as a COLMAP text model in
+// out_dir/true_poses/ (images named like the frames, no points).
+gs::Status generate_path(const PathOptions& options, const std::string& out_dir);
+
 // A closest-hit query result.
 struct SceneHit {
   double t = 0;                 // ray parameter: position = origin + t * dir (metres if |dir| = 1)

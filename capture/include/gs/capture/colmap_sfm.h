@@ -1,0 +1,48 @@
+// SPDX-License-Identifier: MIT
+// Structure from motion by running Debian's `colmap` command on a folder of frames: feature
+// extraction (CPU SIFT, one shared camera), sequential or exhaustive matching, incremental mapping,
+// and undistortion to PINHOLE. The result is a dataset `hbgs train` reads directly:
+// <dataset>/images/*.png and <dataset>/sparse/0/{cameras,images,points3D}.bin. Everything COLMAP
+// prints goes to a log file; progress is reported per stage.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "gs/status.h"
+
+namespace gs::capture {
+
+enum class Matcher { kSequential, kExhaustive };
+Expected<Matcher> parse_matcher(const std::string& name);  // "sequential", "exhaustive"
+
+struct ColmapOptions {
+  std::string colmap = "colmap";          // program name or path
+  Matcher matcher = Matcher::kSequential;  // video frames are in order: sequential is linear time
+  std::string camera_model = "SIMPLE_RADIAL";
+  int threads = 0;                         // 0: COLMAP's default (all cores)
+  int max_image_size = 1600;               // SIFT works on images downscaled to this (px, longest side)
+  double min_registered_fraction = 0.5;    // fewer registered images than this fraction is an error
+  int min_registered = 3;                  // ... and fewer than this, whatever the fraction
+};
+
+struct ColmapReport {
+  int images = 0;        // frames given to COLMAP
+  int registered = 0;    // images in the chosen (largest) model
+  int models = 0;        // reconstructions COLMAP made (several when it loses track)
+  int points = 0;        // 3D points in the chosen model
+  double seconds_features = 0, seconds_matching = 0, seconds_mapping = 0, seconds_undistort = 0;
+};
+
+// Where progress lines go ("[2/4] matching (sequential) ..."); may be empty.
+using ProgressFn = std::function<void(const std::string&)>;
+
+// Runs COLMAP on frames_dir (PNG/JPEG files) using work_dir for its database and raw models, and
+// writes the undistorted dataset to dataset_dir (created). Errors: COLMAP missing (says how to
+// install it or point --colmap at it), a stage failing (names the stage, exit code and the log's
+// last lines), too few images registered (says how many of how many).
+Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir, const std::string& dataset_dir,
+                      const std::string& log_path, const ColmapOptions& options, const ProgressFn& progress,
+                      ColmapReport* report);
+
+}  // namespace gs::capture
