@@ -65,16 +65,20 @@ Expected<Matcher> parse_matcher(const std::string& name) {
   return invalid_argument("unknown matcher '" + name + "' (sequential or exhaustive)");
 }
 
+Status check_colmap(const ColmapOptions& o) {
+  if (!platform::find_program(o.colmap).empty()) return Status::Ok();
+  return Status(StatusCode::kUnsupported,
+                "COLMAP not found: '" + o.colmap +
+                    "' is not an executable on PATH. Install it (Debian/Ubuntu: sudo apt install colmap) or pass "
+                    "--colmap /path/to/colmap");
+}
+
 Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir, const std::string& dataset_dir,
                       const std::string& log_path, const ColmapOptions& o, const ProgressFn& progress,
                       ColmapReport* report) {
   ColmapReport rep;
+  GS_RETURN_IF_ERROR(check_colmap(o));
   const std::string colmap = platform::find_program(o.colmap);
-  if (colmap.empty())
-    return Status(StatusCode::kUnsupported,
-                  "COLMAP not found: '" + o.colmap +
-                      "' is not an executable on PATH. Install it (Debian/Ubuntu: sudo apt install colmap) or pass "
-                      "--colmap /path/to/colmap");
   rep.images = count_images(frames_dir);
   if (rep.images < 2)
     return invalid_argument("structure from motion needs at least 2 frames; " + frames_dir + " has " +
@@ -113,8 +117,9 @@ Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir
        "--Mapper.num_threads", thread_arg(o.threads)},
       "mapping", log_path, progress,
       [&](const std::string& l) {
+        // COLMAP prints this for every registration attempt, including retries after a failure.
         if (l.rfind("Registering image #", 0) == 0 && progress && (++registered_so_far % 10 == 0))
-          progress("      registered " + std::to_string(registered_so_far) + " images");
+          progress("      " + std::to_string(registered_so_far) + " registration steps");
       },
       &rep.seconds_mapping));
 

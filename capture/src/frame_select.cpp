@@ -56,10 +56,10 @@ double median_of(std::vector<double>& v) {
 }
 
 // Stretches with no usable frame (fast motion, a blurred burst) leave the count short; top it up
-// with the sharp frames farthest along the path from every kept one, so spacing stays as even as
-// the video allows.
+// with the sharp frames farthest along the path from every kept one (still at least min_motion
+// apart), so spacing stays as even as the video allows.
 void fill_to_target(const std::vector<double>& along, const std::vector<bool>& sharp, size_t target,
-                    std::vector<size_t>* kept) {
+                    double min_motion, std::vector<size_t>* kept) {
   const size_t n = along.size();
   std::vector<bool> taken(n, false);
   for (size_t k : *kept) taken[k] = true;
@@ -70,6 +70,7 @@ void fill_to_target(const std::vector<double>& along, const std::vector<bool>& s
       if (!sharp[i] || taken[i]) continue;
       double gap = 1e300;
       for (size_t k : *kept) gap = std::min(gap, std::fabs(along[i] - along[k]));
+      if (!kept->empty() && gap < min_motion) continue;
       if (gap > best_gap) {
         best_gap = gap;
         best = i;
@@ -177,7 +178,7 @@ std::vector<size_t> select_frames(const std::vector<FrameStats>& stats, const Se
     }
     if (best != n) kept.push_back(best);
   }
-  fill_to_target(along, sharp, target, &kept);
+  fill_to_target(along, sharp, target, o.min_motion, &kept);
   if (report != nullptr) {
     report->total = int(n);
     report->blurred = blurred;

@@ -145,6 +145,7 @@ Status ingest(const SourceFactory& make_source, const std::string& out_arg, cons
   const std::string out = strip_slashes(out_arg);
   GS_RETURN_IF_ERROR(check_output_folder(out, o.force));
   if (o.select.target_count < 2) return invalid_argument("--frames must be at least 2");
+  GS_RETURN_IF_ERROR(check_colmap(o.colmap));
   const std::string partial = out + ".partial";
   std::error_code ec;
   fs::remove_all(partial, ec);

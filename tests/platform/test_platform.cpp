@@ -21,6 +21,7 @@
 
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
+#include "gs/platform/process.h"
 #include "gs/platform/thread_pool.h"
 #include "support/alloc_counter.h"
 #include "support/temp_dir.h"
@@ -393,4 +394,41 @@ TEST_CASE("file_exists and is_directory") {
   CHECK(gs::platform::file_exists(dir.path()));
   CHECK(gs::platform::is_directory(dir.path()));
   CHECK_FALSE(gs::platform::is_directory(dir / "nope"));
+}
+
+TEST_CASE("run_process passes lines and exit codes and logs the output") {
+  gs::test::TempDir tmp("gs_process");
+  std::vector<std::string> lines;
+  const std::string log = tmp / "run.log";
+  gs::Expected<gs::platform::ProcessResult> r = gs::platform::run_process(
+      {"sh", "-c", "echo first; echo 'to stderr' >&2; printf 'no newline'; exit 3"}, log,
+      [&](const std::string& l) { lines.push_back(l); });
+  REQUIRE(r.ok());
+  CHECK(r->exit_code == 3);
+  REQUIRE(lines.size() == 3);
+  CHECK(lines[0] == "first");
+  CHECK(lines[1] == "to stderr");
+  CHECK(lines[2] == "no newline");
+  gs::Expected<std::string> text = gs::platform::read_text_file(log);
+  REQUIRE(text.ok());
+  CHECK(text->find("$ sh -c") == 0);
+  CHECK(text->find("to stderr") != std::string::npos);
+  // Arguments reach the program unchanged (no shell in between).
+  lines.clear();
+  r = gs::platform::run_process({"sh", "-c", "echo \"$1\"", "sh", "a b; $HOME"}, "", [&](const std::string& l) { lines.push_back(l); });
+  REQUIRE(r.ok());
+  CHECK(r->exit_code == 0);
+  REQUIRE(lines.size() == 1);
+  CHECK(lines[0] == "a b; $HOME");
+}
+
+TEST_CASE("run_process reports a missing program and a killed one") {
+  gs::Expected<gs::platform::ProcessResult> r = gs::platform::run_process({"gs-no-such-program-xyz"}, "");
+  REQUIRE(!r.ok());
+  CHECK(r.status().message().find("not found on PATH") != std::string::npos);
+  CHECK(gs::platform::find_program("gs-no-such-program-xyz").empty());
+  CHECK(!gs::platform::find_program("sh").empty());
+  r = gs::platform::run_process({"sh", "-c", "kill -9 $$"}, "");
+  REQUIRE(r.ok());
+  CHECK(r->exit_code == 128 + 9);
 }

@@ -37,6 +37,10 @@ struct ColmapReport {
 // Where progress lines go ("[2/4] matching (sequential) ..."); may be empty.
 using ProgressFn = std::function<void(const std::string&)>;
 
+// Fails fast (before any slow work) when the COLMAP program cannot be found; the message says how
+// to install it or where to point --colmap.
+Status check_colmap(const ColmapOptions& options);
+
 // Runs COLMAP on frames_dir (PNG/JPEG files) using work_dir for its database and raw models, and
 // writes the undistorted dataset to dataset_dir (created). Errors: COLMAP missing (says how to
 // install it or point --colmap at it), a stage failing (names the stage, exit code and the log's
