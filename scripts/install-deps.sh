@@ -1,18 +1,22 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT
 # Installs what hbgs needs to build and test on Debian 12 (bookworm): compilers, CMake/Ninja, the
-# header and library dependencies, and the ARM cross compilers + qemu-user for the cross test runs.
+# header and library dependencies, the capture/ingest tools (FFmpeg, libcamera, COLMAP), and the ARM
+# cross compilers + qemu-user for the cross test runs.
 # Idempotent: exits early when everything is already installed. Never upgrades and never enables
 # multiarch (both would change unrelated host packages).
 #   scripts/install-deps.sh            everything (what CI uses)
 #   scripts/install-deps.sh --no-cross skip the ARM cross compilers and qemu-user (~500 MB)
 set -euo pipefail
 
-native=(cmake ninja-build g++ libeigen3-dev libxsimd-dev libstb-dev doctest-dev libembree-dev libtbb-dev
+native=(cmake ninja-build g++ pkg-config libeigen3-dev libxsimd-dev libstb-dev doctest-dev libembree-dev libtbb-dev
         libbenchmark-dev libcli11-dev nlohmann-json3-dev)
+# Capture and ingestion: video decoding (FFmpeg's libraries), libcamera, and the ffmpeg and colmap
+# commands (`hbgs ingest` runs COLMAP; the end-to-end ingest test encodes its video with ffmpeg).
+capture=(libavformat-dev libavcodec-dev libavutil-dev libswscale-dev libcamera-dev ffmpeg colmap)
 cross=(g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user)
 
-packages=("${native[@]}")
+packages=("${native[@]}" "${capture[@]}")
 case "${1:-}" in
   --no-cross) ;;
   "") packages+=("${cross[@]}") ;;
