@@ -33,6 +33,17 @@ struct ViewSetup {
 // fx = fy = 0.9 width rounded to a quarter pixel so it is exact in the float PinholeIntrinsics.
 double focal_for(int width) { return std::round(0.9 * width * 4.0) / 4.0; }
 
+// The one shared camera of every synth view: fx = fy = focal_for(width), principal point centred.
+gs::PinholeIntrinsics synth_intrinsics(int width, int height) {
+  gs::PinholeIntrinsics intr;
+  intr.width = width;
+  intr.height = height;
+  intr.fx = intr.fy = float(focal_for(width));
+  intr.cx = float(width / 2.0);
+  intr.cy = float(height / 2.0);
+  return intr;
+}
+
 // World-to-camera pose looking from `eye` at `at` with world +z as up (camera y points down).
 gs::Pose look_at(const double eye[3], const double at[3]) {
   double f[3] = {at[0] - eye[0], at[1] - eye[1], at[2] - eye[2]};
@@ -58,12 +69,7 @@ gs::Pose look_at(const double eye[3], const double at[3]) {
 
 std::vector<ViewSetup> make_views(const SynthOptions& opt) {
   detail::Rng rng(detail::hash_combine(opt.seed, 0xca3e7a5ULL));
-  gs::PinholeIntrinsics intr;
-  intr.width = opt.width;
-  intr.height = opt.height;
-  intr.fx = intr.fy = float(focal_for(opt.width));
-  intr.cx = float(opt.width / 2.0);
-  intr.cy = float(opt.height / 2.0);
+  const gs::PinholeIntrinsics intr = synth_intrinsics(opt.width, opt.height);
 
   std::vector<ViewSetup> views;
   auto add = [&](double azimuth_deg, double elevation_deg, double radius) {
@@ -322,12 +328,7 @@ gs::Status validate_path(const PathOptions& o) {
 std::vector<gs::Camera> make_path_cameras(const PathOptions& o) {
   std::vector<gs::Camera> cams;
   if (!validate_path(o).ok()) return cams;
-  gs::PinholeIntrinsics intr;
-  intr.width = o.width;
-  intr.height = o.height;
-  intr.fx = intr.fy = float(focal_for(o.width));
-  intr.cx = float(o.width / 2.0);
-  intr.cy = float(o.height / 2.0);
+  const gs::PinholeIntrinsics intr = synth_intrinsics(o.width, o.height);
   for (int i = 0; i < o.frames; ++i) {
     const double s = double(i) / double(o.frames - 1);  // 0..1 along the path
     const double az = (-90.0 - o.sweep_deg / 2 + o.sweep_deg * s) * kPi / 180;
