@@ -20,6 +20,7 @@
 #include "common.h"
 #include "gs/model/point_alignment.h"
 #include "gs/model/trainer.h"
+#include "gs/capture/sfm_pose_init.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/simd/kernel_table.h"
@@ -232,6 +233,7 @@ gs::Status apply_recorded_options(const std::string& run, TrainArgs* a) {
   take("pose-lr", &a->pose_lr, true);
   take("point-align", &a->point_align, true);
   take("register-passes", &a->register_passes, true);
+  take("pose-init", &a->pose_init, true);
   take("max-width", &a->max_width, true);
   take("iterations", &a->iterations, false);
   take("checkpoint-every", &a->checkpoint_every, false);
@@ -257,7 +259,7 @@ std::string run_json(const TrainArgs& a) {
                   {"pose-noise", a.pose_noise},         {"pose-noise-on", a.pose_noise_on},
                   {"optimize-poses", a.optimize_poses}, {"coarse-levels", a.coarse_levels},
                   {"pose-lr", a.pose_lr},               {"point-align", a.point_align},
-                  {"register-passes", a.register_passes}};
+                  {"register-passes", a.register_passes}, {"pose-init", a.pose_init}};
   return j.dump(2) + "\n";
 }
 
@@ -333,6 +335,12 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
   }
   gs::Expected<std::vector<int>> save_at = parse_save_at(a.save_at);
   if (!save_at.ok()) return fail(kCmd, save_at.status().message());
+  if (a.pose_init == "sfm") {
+    if (!a.optimize_poses) return fail(kCmd, "--pose-init sfm needs --optimize-poses");
+    gs::capture::ColmapOptions copt;
+    copt.colmap = a.colmap;
+    if (gs::Status st = gs::capture::check_colmap(copt); !st.ok()) return fail(kCmd, "--pose-init sfm: " + st.message());
+  }
   gs::Expected<gs::model::ImageFeatureMode> mode = gs::model::parse_image_feature_mode(a.image_features);
   if (!mode.ok()) return fail(kCmd, "--image-features: " + mode.status().to_string());
 
@@ -364,6 +372,42 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
   for (const gs::io::DatasetView* v : train_views) input_poses.push_back(v->camera.pose);
   const gs::pose::PoseErrors input_errors = errors_for(input_poses, train_index, truth, true);
   gs::platform::ThreadPool pool(a.threads);
+  nlohmann::json sfm_init_json;
+  if (a.optimize_poses && a.pose_init == "sfm" && !a.resume) {
+    // Stage 0: global initialisation by structure from motion (gs/capture/sfm_pose_init.h).
+    std::vector<gs::Camera> cams;
+    std::vector<const gs::io::Image8*> images;
+    for (const gs::io::DatasetView* v : train_views) cams.push_back(v->camera), images.push_back(&v->image);
+    gs::capture::SfmPoseInitOptions so;
+    so.colmap.colmap = a.colmap;
+    so.colmap.matcher = gs::capture::Matcher::kExhaustive;
+    so.colmap.threads = a.threads;
+    gs::capture::SfmPoseInitReport rep;
+    if (!a.quiet) std::fprintf(stderr, "hbgs train: initialising %zu training poses by structure from motion (COLMAP)...\n", cams.size());
+    const gs::capture::ProgressFn progress = [&](const std::string& line) {
+      if (!a.quiet) std::fprintf(stderr, "  %s\n", line.c_str());
+    };
+    if (gs::Status st = gs::capture::init_poses_by_sfm(images, train_names, &cams, ds.points_xyz.data(), npoints,
+                                                       a.out + "/sfm_init", so, progress, &rep);
+        !st.ok())
+      return fail(kCmd, "--pose-init sfm: " + st.message());
+    for (size_t i = 0; i < cams.size(); ++i) ds.views[train_index[i]].camera.pose = cams[i].pose;
+    std::vector<gs::Pose> now;
+    for (const gs::Camera& c : cams) now.push_back(c.pose);
+    const gs::pose::PoseErrors e = errors_for(now, train_index, truth, true);
+    sfm_init_json = {{"seconds", rep.seconds},           {"registered", rep.registered},
+                     {"views", rep.views},               {"colmap_points", rep.colmap_points},
+                     {"centre_fit_rms", rep.centre_fit_rms}, {"icp_median_before", rep.icp_median_before},
+                     {"icp_median_after", rep.icp_median_after}, {"icp_pairs", rep.icp_pairs},
+                     {"icp_iterations", rep.icp_iterations}, {"errors", pose_errors_json(e, false)}};
+    if (!a.quiet)
+      std::fprintf(stderr,
+                   "hbgs train: SfM initialisation in %.1f s: %d of %d views registered; rotation mean %.3f deg (was %.3f), "
+                   "translation %.2f%% of radius (was %.2f%%); ICP median distance %.4f -> %.4f\n",
+                   rep.seconds, rep.registered, rep.views, e.rotation_mean_deg, input_errors.rotation_mean_deg,
+                   100 * e.translation_mean_frac, 100 * input_errors.translation_mean_frac, rep.icp_median_before,
+                   rep.icp_median_after);
+  }
   nlohmann::json point_alignment_json;
   if (a.optimize_poses && a.point_align && !a.resume) {
     // Stage 1: align the training poses to the SfM points (photometric, no model needed).
@@ -433,6 +477,7 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
                           {"optimized", a.optimize_poses},
                           {"scene_radius", truth.radius},
                           {"train_input", pose_errors_json(input_errors, false)},
+                          {"sfm_init", sfm_init_json},
                           {"point_alignment", point_alignment_json},
                           {"train_final", pose_errors_json(errors_for(now, train_index, truth, true), true, train_names)},
                           {"train_final_unaligned", pose_errors_json(errors_for(now, train_index, truth, false), false)}};
@@ -654,6 +699,12 @@ Command add_train_command(CLI::App& parent) {
   sub->add_flag("--optimize-poses", args->optimize_poses, "Optimise the training poses jointly with the scene (saved to refined_poses/)");
   sub->add_flag("!--no-point-align", args->point_align,
                 "With --optimize-poses: skip the photometric alignment of the poses to the SfM points before training");
+  sub->add_option("--pose-init", args->pose_init,
+                  "With --optimize-poses: sfm = first reconstruct the training images with COLMAP and bring that into the "
+                  "dataset's frame (Sim(3) on camera centres, then ICP onto the SfM points): for poses wrong by several degrees")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"none", "sfm"}));
+  sub->add_option("--colmap", args->colmap, "COLMAP program for --pose-init sfm")->capture_default_str();
   sub->add_option("--register-passes", args->register_passes,
                   "With --optimize-poses: registration passes (every training pose registered against the current model) over the first half")
       ->capture_default_str()

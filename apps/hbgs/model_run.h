@@ -84,6 +84,8 @@ struct TrainArgs {
   bool optimize_poses = false;
   bool point_align = true;  // with optimize_poses: align the poses to the SfM points first
   int register_passes = 0;  // with optimize_poses: registration passes over the first half
+  std::string pose_init = "none";  // with optimize_poses: "sfm" = global initialisation by COLMAP first
+  std::string colmap = "colmap";   // the COLMAP program for pose_init sfm
   int coarse_levels = -1;
   double pose_lr = 5e-5;
   bool resume = false, force = false, quiet = false;

@@ -73,9 +73,9 @@ Status check_colmap(const ColmapOptions& o) {
                     "--colmap /path/to/colmap");
 }
 
-Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir, const std::string& dataset_dir,
-                      const std::string& log_path, const ColmapOptions& o, const ProgressFn& progress,
-                      ColmapReport* report) {
+Status run_colmap_reconstruction(const std::string& frames_dir, const std::string& work_dir, const std::string& log_path,
+                                 const ColmapOptions& o, const ProgressFn& progress, ColmapReport* report,
+                                 std::string* model_dir) {
   ColmapReport rep;
   GS_RETURN_IF_ERROR(check_colmap(o));
   const std::string colmap = platform::find_program(o.colmap);
@@ -92,10 +92,14 @@ Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir
 
   int extracted = 0;
   if (progress) progress("[1/4] COLMAP feature extraction on " + std::to_string(rep.images) + " frames (CPU SIFT)");
+  std::vector<std::string> extract = {
+      colmap, "feature_extractor", "--database_path", db, "--image_path", frames_dir, "--ImageReader.single_camera", "1",
+      "--ImageReader.camera_model", o.camera_model, "--SiftExtraction.use_gpu", "0", "--SiftExtraction.num_threads",
+      thread_arg(o.threads), "--SiftExtraction.max_image_size", std::to_string(o.max_image_size)};
+  const bool fixed = !o.camera_params.empty();
+  if (fixed) extract.insert(extract.end(), {"--ImageReader.camera_params", o.camera_params});
   GS_RETURN_IF_ERROR(run_stage(
-      {colmap, "feature_extractor", "--database_path", db, "--image_path", frames_dir, "--ImageReader.single_camera", "1",
-       "--ImageReader.camera_model", o.camera_model, "--SiftExtraction.use_gpu", "0", "--SiftExtraction.num_threads",
-       thread_arg(o.threads), "--SiftExtraction.max_image_size", std::to_string(o.max_image_size)},
+      extract,
       "feature extraction", log_path, progress,
       [&](const std::string& l) {
         if (l.find("Processed file") != std::string::npos && progress && (++extracted % 20 == 0))
@@ -112,9 +116,15 @@ Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir
 
   int registered_so_far = 0;
   if (progress) progress("[3/4] COLMAP mapping");
+  std::vector<std::string> map = {colmap, "mapper", "--database_path", db, "--image_path", frames_dir, "--output_path",
+                                  sparse, "--Mapper.num_threads", thread_arg(o.threads)};
+  if (o.permissive_registration)
+    map.insert(map.end(), {"--Mapper.abs_pose_min_num_inliers", "12", "--Mapper.abs_pose_min_inlier_ratio", "0.1"});
+  if (fixed)
+    map.insert(map.end(), {"--Mapper.ba_refine_focal_length", "0", "--Mapper.ba_refine_principal_point", "0",
+                           "--Mapper.ba_refine_extra_params", "0"});
   GS_RETURN_IF_ERROR(run_stage(
-      {colmap, "mapper", "--database_path", db, "--image_path", frames_dir, "--output_path", sparse,
-       "--Mapper.num_threads", thread_arg(o.threads)},
+      map,
       "mapping", log_path, progress,
       [&](const std::string& l) {
         // COLMAP prints this for every registration attempt, including retries after a failure.
@@ -146,6 +156,19 @@ Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir
                       " frames (" + std::to_string(rep.models) + " reconstruction(s); at least " +
                       std::to_string(needed) +
                       " needed). The frames may be too blurred, too similar or lack texture; see " + log_path);
+  *model_dir = best_model;
+  return Status::Ok();
+}
+
+Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir, const std::string& dataset_dir,
+                      const std::string& log_path, const ColmapOptions& o, const ProgressFn& progress,
+                      ColmapReport* report) {
+  ColmapReport local;
+  ColmapReport& rep = report != nullptr ? *report : local;
+  std::string best_model;
+  GS_RETURN_IF_ERROR(run_colmap_reconstruction(frames_dir, work_dir, log_path, o, progress, &rep, &best_model));
+  const std::string colmap = platform::find_program(o.colmap);
+  std::error_code ec;
 
   if (progress)
     progress("[4/4] undistorting " + std::to_string(rep.registered) + " registered frames to PINHOLE");
@@ -154,7 +177,6 @@ Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir
   GS_RETURN_IF_ERROR(run_stage({colmap, "image_undistorter", "--image_path", frames_dir, "--input_path", best_model,
                                 "--output_path", undist, "--output_type", "COLMAP"},
                                "undistortion", log_path, progress, {}, &rep.seconds_undistort));
-  if (report != nullptr) *report = rep;
 
   // image_undistorter writes <undist>/images and <undist>/sparse/*.bin; hbgs reads sparse/0.
   GS_RETURN_IF_ERROR(platform::make_dirs(dataset_dir + "/sparse"));

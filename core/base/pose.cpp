@@ -475,6 +475,79 @@ void perturb_poses(const PoseNoise& noise, const double scene_centre[3], double 
   }
 }
 
+bool fit_sim3(const double* x, const double* y, const double* weights, size_t n, Sim3* out) {
+  if (n < 3) return false;
+  auto X = [&](size_t i) { return Eigen::Vector3d(x[3 * i], x[3 * i + 1], x[3 * i + 2]); };
+  auto Y = [&](size_t i) { return Eigen::Vector3d(y[3 * i], y[3 * i + 1], y[3 * i + 2]); };
+  double wsum = 0;
+  Eigen::Vector3d mx = Eigen::Vector3d::Zero(), my = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < n; ++i) {
+    const double w = weights != nullptr ? weights[i] : 1.0;
+    mx += w * X(i), my += w * Y(i), wsum += w;
+  }
+  if (!(wsum > 0)) return false;
+  mx /= wsum, my /= wsum;
+  Eigen::Matrix3d Sxy = Eigen::Matrix3d::Zero(), Sxx = Eigen::Matrix3d::Zero(), Syy = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < n; ++i) {
+    const double w = weights != nullptr ? weights[i] : 1.0;
+    const Eigen::Vector3d dx = X(i) - mx, dy = Y(i) - my;
+    Sxy += w * dy * dx.transpose();
+    Sxx += w * dx * dx.transpose();
+    Syy += w * dy * dy.transpose();
+  }
+  Sxy /= wsum, Sxx /= wsum, Syy /= wsum;
+  // Degenerate (coincident or collinear points in either set, or a rank-1 cross-covariance): the
+  // rotation about the line is undetermined. A covariance's singular values are squared spreads;
+  // the second spread must exceed 1e-5 of the set's length scale (spread + |mean|), 100x above the
+  // ~1e-7 relative noise of centres computed from float poses.
+  auto spread_2d = [](const Eigen::Matrix3d& S, const Eigen::Vector3d& mean) {
+    const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(S).singularValues();
+    const double length = std::sqrt(std::max(sv[0], 0.0)) + mean.norm();
+    return length > 0 && std::sqrt(std::max(sv[1], 0.0)) > 1e-5 * length;
+  };
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(Sxy, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Vector3d d = svd.singularValues();
+  if (!(spread_2d(Sxx, mx) && spread_2d(Syy, my) && d[0] > 0 && d[1] > 1e-10 * d[0])) return false;
+  Eigen::Vector3d S(1, 1, 1);
+  if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0) S[2] = -1;  // reflection fix
+  const Eigen::Matrix3d R = svd.matrixU() * S.asDiagonal() * svd.matrixV().transpose();
+  const double scale = d.dot(S) / Sxx.trace();
+  const Eigen::Vector3d t = my - scale * R * mx;
+  out->s = scale;
+  for (int r = 0; r < 3; ++r) {
+    for (int k = 0; k < 3; ++k) out->R[3 * r + k] = R(r, k);
+    out->t[r] = t[r];
+  }
+  return true;
+}
+
+void transform_point(const Sim3& T, const double x[3], double y[3]) {
+  double r[3];
+  matvec(T.R, x, r);
+  for (int i = 0; i < 3; ++i) y[i] = T.s * r[i] + T.t[i];
+}
+
+Pose transform_pose(const Sim3& T, const Pose& pose) {
+  double R[9], t[3], Rn[9], Rt_t[3];
+  to_double(pose, R, t);
+  matmul_bt(R, T.R, Rn);  // R R_T^T
+  matvec(Rn, T.t, Rt_t);
+  double tn[3];
+  for (int i = 0; i < 3; ++i) tn[i] = T.s * t[i] - Rt_t[i];
+  orthonormalise(Rn);
+  Pose out;
+  store(Rn, tn, &out);
+  return out;
+}
+
+Sim3 compose(const Sim3& b, const Sim3& a) {
+  Sim3 c;
+  c.s = b.s * a.s;
+  matmul(b.R, a.R, c.R);
+  transform_point(b, a.t, c.t);
+  return c;
+}
+
 PoseErrors pose_errors(const Pose* estimated, const Pose* truth, size_t n, double scene_radius, bool align) {
   PoseErrors e;
   e.count = n;
@@ -484,41 +557,17 @@ PoseErrors pose_errors(const Pose* estimated, const Pose* truth, size_t n, doubl
     centre(estimated[i], ce[i].data());
     centre(truth[i], ct[i].data());
   }
-  // Umeyama (1991): y ~ s R x + t with x the estimated centres, y the true ones.
+  // Sim(3) y ~ s R x + t with x the estimated centres, y the true ones.
   double s = 1;
   Eigen::Matrix3d Ra = Eigen::Matrix3d::Identity();
   Eigen::Vector3d ta = Eigen::Vector3d::Zero();
-  if (align && n >= 3) {
-    Eigen::Vector3d mx = Eigen::Vector3d::Zero(), my = Eigen::Vector3d::Zero();
-    for (size_t i = 0; i < n; ++i) mx += ce[i], my += ct[i];
-    mx /= double(n), my /= double(n);
-    Eigen::Matrix3d Sxy = Eigen::Matrix3d::Zero(), Sxx = Eigen::Matrix3d::Zero(), Syy = Eigen::Matrix3d::Zero();
-    for (size_t i = 0; i < n; ++i) {
-      const Eigen::Vector3d dx = ce[i] - mx, dy = ct[i] - my;
-      Sxy += dy * dx.transpose();
-      Sxx += dx * dx.transpose();
-      Syy += dy * dy.transpose();
-    }
-    Sxy /= double(n), Sxx /= double(n), Syy /= double(n);
-    // Degenerate (coincident or collinear centres in either set, or a rank-1 cross-covariance):
-    // the rotation about the line is undetermined. A covariance's singular values are squared
-    // spreads; the second spread must exceed 1e-5 of the set's length scale (spread + |mean|),
-    // 100x above the ~1e-7 relative noise of centres computed from float poses.
-    auto spread_2d = [](const Eigen::Matrix3d& S, const Eigen::Vector3d& mean) {
-      const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(S).singularValues();
-      const double length = std::sqrt(std::max(sv[0], 0.0)) + mean.norm();
-      return length > 0 && std::sqrt(std::max(sv[1], 0.0)) > 1e-5 * length;
-    };
-    Eigen::JacobiSVD<Eigen::Matrix3d> svd(Sxy, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    const Eigen::Vector3d d = svd.singularValues();
-    if (spread_2d(Sxx, mx) && spread_2d(Syy, my) && d[0] > 0 && d[1] > 1e-10 * d[0]) {
-      Eigen::Vector3d S(1, 1, 1);
-      if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0) S[2] = -1;  // reflection fix
-      Ra = svd.matrixU() * S.asDiagonal() * svd.matrixV().transpose();
-      s = svd.singularValues().dot(S) / Sxx.trace();
-      ta = my - s * Ra * mx;
-      e.aligned = true;
-    }
+  Sim3 fit;
+  if (align && fit_sim3(ce[0].data(), ct[0].data(), nullptr, n, &fit)) {
+    s = fit.s;
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) Ra(r, k) = fit.R[3 * r + k];
+    ta = Eigen::Vector3d(fit.t[0], fit.t[1], fit.t[2]);
+    e.aligned = true;
   }
   e.scale = s;
   e.rotation_deg.resize(n);

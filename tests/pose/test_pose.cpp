@@ -785,3 +785,50 @@ TEST_CASE("scene_frame is the mean centre and the largest distance from it") {
   CHECK(r == 1e-9);
   CHECK(std::abs(c[0] - 1) < 1e-6);
 }
+
+TEST_CASE("pose: fit_sim3 recovers a similarity and transform_pose moves cameras with the world") {
+  gs::pose::Sim3 T;
+  const double phi[3] = {0.3, -0.5, 0.8};
+  gs::pose::so3_exp(phi, T.R);
+  T.s = 1.7;
+  T.t[0] = 0.5, T.t[1] = -2.0, T.t[2] = 3.0;
+  std::vector<double> x, y;
+  for (int i = 0; i < 20; ++i) {
+    const double p[3] = {std::sin(1.3 * i), std::cos(0.7 * i) * 2.0, 0.1 * i - 1.0};
+    double q[3];
+    gs::pose::transform_point(T, p, q);
+    x.insert(x.end(), p, p + 3);
+    y.insert(y.end(), q, q + 3);
+  }
+  gs::pose::Sim3 fit;
+  REQUIRE(gs::pose::fit_sim3(x.data(), y.data(), nullptr, 20, &fit));
+  CHECK(fit.s == doctest::Approx(T.s).epsilon(1e-12));
+  for (int k = 0; k < 9; ++k) CHECK(fit.R[k] == doctest::Approx(T.R[k]).epsilon(1e-12));
+  for (int k = 0; k < 3; ++k) CHECK(fit.t[k] == doctest::Approx(T.t[k]).epsilon(1e-12));
+  // Collinear points are refused.
+  std::vector<double> line;
+  for (int i = 0; i < 5; ++i) line.insert(line.end(), {double(i), 2.0 * i, -1.0 * i});
+  CHECK(!gs::pose::fit_sim3(line.data(), line.data(), nullptr, 5, &fit));
+
+  // A camera sees a world point at the same pixel before and after the world moves, at s x depth.
+  gs::Pose cam;
+  const double xi[6] = {0.2, -0.1, 0.4, 0.05, 0.3, -0.2};
+  gs::pose::apply_left_twist(xi, &cam);
+  const gs::Pose moved = gs::pose::transform_pose(T, cam);
+  const double X[3] = {0.3, 0.2, 4.0};
+  double Xw[3];
+  gs::pose::transform_point(T, X, Xw);
+  double a[3], b[3];
+  for (int r = 0; r < 3; ++r) {
+    a[r] = cam.t[r], b[r] = moved.t[r];
+    for (int k = 0; k < 3; ++k) a[r] += double(cam.R[3 * r + k]) * X[k], b[r] += double(moved.R[3 * r + k]) * Xw[k];
+  }
+  for (int r = 0; r < 3; ++r) CHECK(b[r] == doctest::Approx(T.s * a[r]).epsilon(1e-5));
+  // compose: (b after a) applied to a point equals applying a then b.
+  const gs::pose::Sim3 both = gs::pose::compose(T, fit);
+  double p1[3], p2[3], p3[3];
+  gs::pose::transform_point(fit, X, p1);
+  gs::pose::transform_point(T, p1, p2);
+  gs::pose::transform_point(both, X, p3);
+  for (int r = 0; r < 3; ++r) CHECK(p3[r] == doctest::Approx(p2[r]).epsilon(1e-12));
+}

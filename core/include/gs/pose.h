@@ -84,6 +84,23 @@ struct PoseErrors {
 // back to no alignment and says so in `aligned`. scene_radius > 0 for the fraction.
 PoseErrors pose_errors(const Pose* estimated, const Pose* truth, size_t n, double scene_radius, bool align);
 
+// A similarity transform of the world, X' = s R X + t (R row-major).
+struct Sim3 {
+  double s = 1;
+  double R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  double t[3] = {0, 0, 0};
+};
+// Umeyama (1991) least squares y ~ s R x + t over n point pairs x, y [n, 3] (weights [n] or nullptr),
+// with the reflection fix. Returns false (out untouched) when either set is degenerate (coincident
+// or collinear) or n < 3.
+bool fit_sim3(const double* x, const double* y, const double* weights, size_t n, Sim3* out);
+// The same camera after the world changes by T: a world-to-camera pose (R, t) becomes
+// (R R_T^T, s t - R R_T^T t_T), with camera units scaled by s so depths stay in world units.
+Pose transform_pose(const Sim3& T, const Pose& pose);
+void transform_point(const Sim3& T, const double x[3], double y[3]);
+// a then b: X'' = b(a(X)).
+Sim3 compose(const Sim3& b, const Sim3& a);
+
 // Scene frame used by noise and error fractions: mean camera centre and the largest distance of a
 // centre from it (floored at 1e-9).
 void scene_frame(const Pose* poses, size_t n, double centre[3], double* radius);

@@ -20,6 +20,9 @@ struct ColmapOptions {
   std::string colmap = "colmap";          // program name or path
   Matcher matcher = Matcher::kSequential;  // video frames are in order: sequential is linear time
   std::string camera_model = "SIMPLE_RADIAL";
+  std::string camera_params;               // "fx,fy,cx,cy" etc.: known intrinsics, held fixed in mapping
+  bool permissive_registration = false;    // register images on fewer inliers (12, 10 %; COLMAP: 30, 25 %),
+                                           // which small images with few features need
   int threads = 0;                         // 0: COLMAP's default (all cores)
   int max_image_size = 1600;               // SIFT works on images downscaled to this (px, longest side)
   double min_registered_fraction = 0.5;    // fewer registered images than this fraction is an error
@@ -40,6 +43,12 @@ using ProgressFn = std::function<void(const std::string&)>;
 // Fails fast (before any slow work) when the COLMAP program cannot be found; the message says how
 // to install it or where to point --colmap.
 Status check_colmap(const ColmapOptions& options);
+
+// Feature extraction, matching and mapping only: on success *model_dir is COLMAP's largest
+// reconstruction (binary model) under work_dir/sparse. report->registered etc. are filled.
+Status run_colmap_reconstruction(const std::string& frames_dir, const std::string& work_dir, const std::string& log_path,
+                                 const ColmapOptions& options, const ProgressFn& progress, ColmapReport* report,
+                                 std::string* model_dir);
 
 // Runs COLMAP on frames_dir (PNG/JPEG files) using work_dir for its database and raw models, and
 // writes the undistorted dataset to dataset_dir (created). Errors: COLMAP missing (says how to

@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# `hbgs train --optimize-poses --pose-init sfm` from BARF's hard case (sigma 0.15 se(3) noise on
+# every training pose, about 14.6 degrees) on the built-in scene, with the real COLMAP: every view
+# must be registered and the training poses must end within 0.2 degrees and 0.5 % of the radius of
+# the truth. A short run (200 iterations); the full figures are in the issue notes and POSES.md.
+# Needs the `colmap` command; without it the test says so and is skipped (exit 77).
+# Usage: e2e_pose_init_sfm.sh HBGS WORK_DIR
+set -euo pipefail
+hbgs=$1
+work=$2
+if ! command -v colmap >/dev/null; then
+  echo "SKIP: the 'colmap' command is not installed (scripts/install-deps.sh installs it)"
+  exit 77
+fi
+rm -rf "$work"
+mkdir -p "$work"
+"$hbgs" synth --out "$work/scene" --quiet
+"$hbgs" train "$work/scene" --out "$work/run" --iterations 200 --pose-noise barf:0.15 --optimize-poses \
+  --pose-init sfm --eval-every 0 --threads 2
+python3 - "$work/run/results.json" <<'PY'
+import json, sys
+r = next(iter(json.load(open(sys.argv[1])).values()))["poses"]
+sfm, final, given = r["sfm_init"], r["train_final"], r["train_input"]
+print(f"given poses: {given['rotation_mean_deg']:.3f} deg; after SfM init: {sfm['errors']['rotation_mean_deg']:.3f} deg "
+      f"({sfm['registered']} of {sfm['views']} registered); after point alignment: "
+      f"{r['point_alignment']['errors']['rotation_mean_deg']:.3f} deg; final: {final['rotation_mean_deg']:.3f} deg, "
+      f"{100 * final['translation_mean_fraction_of_radius']:.3f} % of the radius")
+ok = (given["rotation_mean_deg"] > 10 and sfm["registered"] == sfm["views"] and final["rotation_mean_deg"] < 0.2
+      and final["translation_mean_fraction_of_radius"] < 0.005)
+sys.exit(0 if ok else 1)
+PY
