@@ -273,6 +273,27 @@ struct Registrar::Impl {
     }
   }
 
+  // The coarsest alignment from several rotations about the camera centre (see
+  // RegisterOptions::coarse_candidates); rel ends as the candidate with the lowest final cost.
+  void align_from_candidates(const PinholeIntrinsics& in, Pose* rel, int* iterations, double deadline) {
+    const int n = std::max(1, std::min(opt.coarse_candidates, 9));
+    const double a = opt.candidate_angle_deg * M_PI / 180.0;
+    // Candidate order: the start first, then the four pan/tilt neighbours, then the diagonals.
+    static const int kOffsets[9][2] = {{0, 0}, {1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
+    Pose best = *rel;
+    double best_cost = INFINITY;
+    for (int c = 0; c < n; ++c) {
+      if (c > 0 && deadline > 0 && platform::now_seconds() > deadline) break;
+      Pose cand = *rel;
+      const double xi[6] = {0, 0, 0, kOffsets[c][1] * a, kOffsets[c][0] * a, 0};  // tilt about x, pan about y
+      pose::apply_left_twist(xi, &cand);
+      align_level(in, &cand, iterations, deadline);
+      const double cost = warp_cost(in, cand, nullptr, nullptr);
+      if (cost < best_cost) best_cost = cost, best = cand;
+    }
+    *rel = best;
+  }
+
   // kKeyframe: keyframes at the current pose, each aligned coarse to fine; returns the new pose.
   Status keyframe_alignment(Camera* full, const uint8_t* image, int coarsest, int finest, int* iterations, int* levels,
                             double deadline) {
@@ -292,7 +313,10 @@ struct Registrar::Impl {
         box_down(key_depth.data(), kw, kh, 1, f, lvl_depth.data());
         box_down(key_alpha.data(), kw, kh, 1, f, lvl_alpha.data());
         io::box_downsample_rgb(image, full->intr.width, full->intr.height, s, target.data());
-        align_level(in, &rel, iterations, deadline);
+        if (k == 0 && s == coarsest)
+          align_from_candidates(in, &rel, iterations, deadline);
+        else
+          align_level(in, &rel, iterations, deadline);
         if (k == 0) ++*levels;
       }
       // The target pose: rel o keyframe pose (R = R_rel R_k, t = R_rel t_k + t_rel).

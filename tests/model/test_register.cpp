@@ -110,6 +110,34 @@ TEST_CASE("register: keyframe alignment and Gauss-Newton recover the pose from a
   }
 }
 
+TEST_CASE("register: coarse start candidates widen the keyframe basin") {
+  // 14 degrees of pan and tilt about the camera centre: beyond the single start's basin on this
+  // object, inside the 3x3 grid of 8-degree candidates.
+  const Fixture& f = fixture();
+  platform::ThreadPool pool(2);
+  Pose start = f.truth.pose;
+  const double xi[6] = {0, 0, 0, 0.17, -0.17, 0.0};
+  pose::apply_left_twist(xi, &start);
+  const double start_rot = pose::rotation_error_deg(start, f.truth.pose);
+  double rot[2] = {0, 0};
+  for (int candidates : {1, 9}) {
+    RegisterOptions opt;
+    opt.coarse_candidates = candidates;
+    auto reg = Registrar::create(f.model, kW, kH, opt, &pool);
+    REQUIRE(reg.ok());
+    RegisterResult r;
+    REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, start, &r).ok());
+    rot[candidates == 9] = pose::rotation_error_deg(r.pose, f.truth.pose);
+    MESSAGE(candidates << " candidate(s): " << start_rot << " -> " << rot[candidates == 9] << " deg, "
+                       << std::string(verdict_name(r.verdict)) << ", " << r.milliseconds << " ms");
+    if (candidates == 9) {
+      CHECK(r.converged());
+      CHECK(rot[1] < 0.1);
+    }
+  }
+  CHECK(rot[1] < rot[0]);
+}
+
 TEST_CASE("register: Adam reduces a 3 degree error and keeps the best pose") {
   const Fixture& f = fixture();
   RegisterOptions opt;

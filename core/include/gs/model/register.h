@@ -42,6 +42,12 @@ struct RegisterOptions {
   int keyframes = 3;             // kKeyframe: renders (outer rounds) before the polish
   int keyframe_iterations = 15;  // kKeyframe: LM steps per pyramid level per keyframe
   int polish_iterations = 3;     // kKeyframe: renderer LM steps at the finest level at the end
+  // kKeyframe: at the coarsest level of the first keyframe, start the alignment from this many
+  // rotations about the camera centre (the start, then pan/tilt offsets of candidate_angle_deg on a
+  // 3x3 grid) and keep the one that ends with the lowest cost: a wider basin for the price of a few
+  // coarse (tiny) alignments. 1: only the start.
+  int coarse_candidates = 9;
+  double candidate_angle_deg = 8.0;
   int finest_downscale = 1;      // resolution divisor of the last level (1: full, 4: quarter)
   int min_coarse_width = 12;     // the coarsest level is the largest halving at least this wide, px
   int max_levels = 6;            // at most this many levels
