@@ -444,7 +444,9 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
   topt.schedule_iterations = a.iterations;
   topt.seed = a.seed;
   topt.optimize_poses = a.optimize_poses;
-  topt.coarse_levels = a.coarse_levels >= 0 ? a.coarse_levels : (a.optimize_poses ? 2 : 0);
+  // Coarse to fine helps poses a few degrees off; after --pose-init sfm they are already close, and
+  // the low-resolution phase would only cost detail (measured: 28.31 against 28.69 dB on synth).
+  topt.coarse_levels = a.coarse_levels >= 0 ? a.coarse_levels : (a.optimize_poses && a.pose_init != "sfm" ? 2 : 0);
   topt.lr_pose_rotation_init = topt.lr_pose_translation_init = a.pose_lr;
   if (a.optimize_poses) {
     topt.image_feature_refresh = 250;  // features follow the moving poses
@@ -710,7 +712,7 @@ Command add_train_command(CLI::App& parent) {
       ->capture_default_str()
       ->check(CLI::Range(0, 1000));
   sub->add_option("--coarse-levels", args->coarse_levels,
-                  "Coarse-to-fine halvings over the first 30% of iterations (-1: 2 with --optimize-poses, else 0)")
+                  "Coarse-to-fine halvings over the first 30% of iterations (-1: 2 with --optimize-poses unless --pose-init sfm, else 0)")
       ->capture_default_str()
       ->check(CLI::Range(-1, 4));
   sub->add_option("--pose-lr", args->pose_lr, "Initial pose learning rate (rad; translation x scene extent)")
