@@ -30,7 +30,8 @@ rm -rf "$out"
 mkdir -p "$out/truth"
 
 # H.264 4:2:0 needs even sizes: crop a trailing odd row or column.
-ffmpeg -v error -nostdin -framerate 10 -pattern_type glob -i "$images/*.[jJpP][pPnN][gG]" \
+first=$(ls "$images" | head -1)
+ffmpeg -v error -nostdin -framerate 10 -pattern_type glob -i "$images/*.${first##*.}" \
   -vf "crop=trunc(iw/2)*2:trunc(ih/2)*2:0:0" -c:v libx264 -pix_fmt yuv420p -crf 18 "$out/clip.mp4"
 frames=$(ls "$images" | wc -l)
 # shellcheck disable=SC2086
