@@ -43,7 +43,13 @@ void pose_to_double(const Pose& pose, double R[9], double t[3]) {
   for (int i = 0; i < 3; ++i) t[i] = pose.t[i];
 }
 
-constexpr double kNear = 0.05;  // camera-space depth below which a point is ignored
+constexpr double kNear = 0.05;
+
+double median_of(std::vector<double> x) {
+  if (x.empty()) return 0;
+  std::nth_element(x.begin(), x.begin() + std::ptrdiff_t(x.size() / 2), x.end());
+  return x[x.size() / 2];
+}  // camera-space depth below which a point is ignored
 
 struct Aligner {
   const float* xyz = nullptr;
@@ -198,6 +204,31 @@ struct Aligner {
   }
 };
 
+// How far each view moved from its start; views whose move is not to be trusted (see
+// PointAlignOptions) get their start pose back.
+void keep_trusted_moves(const std::vector<Pose>& start, double radius, const PointAlignOptions& options,
+                        std::vector<Camera>* cameras, PointAlignReport* rep) {
+  const size_t V = start.size();
+  std::vector<double> move_deg(V), move_frac(V);
+  for (size_t v = 0; v < V; ++v) {
+    double a[3], b[3];
+    pose::centre(start[v], a);
+    pose::centre((*cameras)[v].pose, b);
+    move_deg[v] = pose::rotation_error_deg(start[v], (*cameras)[v].pose);
+    move_frac[v] = std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2])) / radius;
+  }
+  rep->median_move_deg = median_of(move_deg);
+  rep->median_move_frac = median_of(move_frac);
+  rep->discarded = rep->median_move_deg < options.discard_below_median_move_deg;
+  const double k = options.max_move_over_median;
+  for (size_t v = 0; v < V; ++v) {
+    const bool too_far = k > 0 && (move_deg[v] > k * rep->median_move_deg || move_frac[v] > k * rep->median_move_frac);
+    if (!rep->discarded && !too_far) continue;
+    (*cameras)[v].pose = start[v];
+    rep->reverted_views.push_back(int(v));
+  }
+}
+
 }  // namespace
 
 Status align_poses_to_points(const float* xyz, const uint8_t* rgb, size_t n, const std::vector<const io::Image8*>& images,
@@ -234,6 +265,8 @@ Status align_poses_to_points(const float* xyz, const uint8_t* rgb, size_t n, con
     pose::scene_frame(poses.data(), poses.size(), centre, &al.radius);
   }
   const size_t V = cameras->size();
+  std::vector<Pose> start;
+  for (const Camera& c : *cameras) start.push_back(c.pose);
   al.images.resize(V);
   al.intr.resize(V);
   al.zbuf.resize(V);
@@ -289,6 +322,7 @@ Status align_poses_to_points(const float* xyz, const uint8_t* rgb, size_t n, con
     }
     ++rep.levels;
   }
+  keep_trusted_moves(start, al.radius, options, cameras, &rep);
   rep.seconds = platform::now_seconds() - t0;
   if (report) *report = rep;
   return Status::Ok();

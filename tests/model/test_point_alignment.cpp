@@ -5,6 +5,8 @@
 // with leave-one-out means; plus the refusal of bad inputs (no data needed).
 #include <doctest/doctest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -67,6 +69,97 @@ TEST_CASE("point alignment: fox training poses from a 2 degree and 2 percent sta
       CHECK(after.rotation_mean_deg < before.rotation_mean_deg);
     }
   }
+}
+
+// Fox's training views (truth), their cameras and images; false when the shared data is absent.
+struct FoxViews {
+  Expected<io::Dataset> ds = io::load_dataset(std::string(GS_SOURCE_DIR) + "/../shared/data/fox");
+  std::vector<Pose> truth;
+  std::vector<Camera> cameras;
+  std::vector<const io::Image8*> images;
+  double centre[3] = {}, radius = 0;
+  FoxViews() {
+    if (!ds.ok()) return;
+    for (const io::DatasetView& v : ds->views)
+      if (!v.is_test) truth.push_back(v.camera.pose), cameras.push_back(v.camera), images.push_back(&v.image);
+    pose::scene_frame(truth.data(), truth.size(), centre, &radius);
+  }
+  // The training cameras with fixed noise of deg degrees and frac of the radius on every pose.
+  std::vector<Camera> noisy(double deg, double frac) const {
+    pose::PoseNoise noise;
+    noise.kind = pose::PoseNoise::kFixed;
+    noise.rotation_deg = deg;
+    noise.translation_frac = frac;
+    std::vector<Pose> p = truth;
+    pose::perturb_poses(noise, centre, radius, p.data(), p.size());
+    std::vector<Camera> out = cameras;
+    for (size_t i = 0; i < out.size(); ++i) out[i].pose = p[i];
+    return out;
+  }
+  Status align(std::vector<Camera>* cams, const PointAlignOptions& o, platform::ThreadPool* pool, PointAlignReport* rep) const {
+    return align_poses_to_points(ds->points_xyz.data(), ds->points_rgb.data(), ds->points_xyz.size() / 3, images, cams, o,
+                                 pool, rep);
+  }
+};
+
+bool same_pose(const Pose& a, const Pose& b) {
+  for (int i = 0; i < 9; ++i)
+    if (a.R[i] != b.R[i]) return false;
+  return a.t[0] == b.t[0] && a.t[1] == b.t[1] && a.t[2] == b.t[2];
+}
+
+TEST_CASE("point alignment: moves within its precision are discarded and outlying moves undone (shared data)") {
+  const FoxViews fox;
+  if (!fox.ds.ok()) {
+    MESSAGE("skipped: ../shared/data/fox is absent (" << fox.ds.status().to_string() << ")");
+    return;
+  }
+  platform::ThreadPool pool(2);
+  // A start 0.05 degrees off: the alignment moves the views (by its own imprecision), and with a
+  // discard threshold above that median move every view gets its start back, bit for bit.
+  const std::vector<Camera> close = fox.noisy(0.05, 0.0005);
+  PointAlignOptions keep_close;
+  keep_close.discard_below_median_move_deg = 0.5;
+  std::vector<Camera> cams = close;
+  PointAlignReport rep;
+  REQUIRE(fox.align(&cams, keep_close, &pool, &rep).ok());
+  MESSAGE("0.05 degree start: median move " << rep.median_move_deg << " deg, " << rep.median_move_frac << " of the radius");
+  CHECK(rep.median_move_deg > 0);
+  CHECK(rep.median_move_deg < 0.5);
+  CHECK(rep.discarded);
+  CHECK(rep.reverted_views.size() == cams.size());
+  for (size_t v = 0; v < cams.size(); ++v) CHECK(same_pose(cams[v].pose, close[v].pose));
+
+  // From 2 degrees with one view 25 degrees off: that view's move is far beyond 3x the median
+  // and is undone; every kept move is within 3x the median; the kept views still improve.
+  std::vector<Camera> start = fox.noisy(2, 0.02);
+  const double big[6] = {0, 0, 0, 0, 25 * M_PI / 180, 0};
+  pose::apply_left_twist(big, &start[3].pose);
+  PointAlignOptions trust;
+  trust.max_move_over_median = 3;
+  cams = start;
+  rep = PointAlignReport{};
+  REQUIRE(fox.align(&cams, trust, &pool, &rep).ok());
+  CHECK_FALSE(rep.discarded);
+  CHECK(rep.median_move_deg > 1);
+  const bool view3_reverted = std::find(rep.reverted_views.begin(), rep.reverted_views.end(), 3) != rep.reverted_views.end();
+  CHECK(view3_reverted);
+  double before = 0, after = 0;
+  size_t kept = 0;
+  for (size_t v = 0; v < cams.size(); ++v) {
+    if (std::find(rep.reverted_views.begin(), rep.reverted_views.end(), int(v)) != rep.reverted_views.end()) {
+      CHECK(same_pose(cams[v].pose, start[v].pose));
+      continue;
+    }
+    CHECK(pose::rotation_error_deg(start[v].pose, cams[v].pose) <= 3 * rep.median_move_deg + 1e-9);
+    before += pose::rotation_error_deg(start[v].pose, fox.truth[v]);
+    after += pose::rotation_error_deg(cams[v].pose, fox.truth[v]);
+    ++kept;
+  }
+  MESSAGE("2 degree start, view 3 at 25 degrees: " << rep.reverted_views.size() << " views reverted, kept views "
+          << before / double(kept) << " -> " << after / double(kept) << " deg");
+  CHECK(kept + 3 > cams.size());
+  CHECK(after < 0.25 * before);
 }
 
 TEST_CASE("point alignment: bad inputs are refused") {

@@ -31,12 +31,22 @@ struct PointAlignOptions {
   double huber = 0.1;            // colour residual norm beyond which weights fall as 1/|r|
   size_t max_points = 20000;     // points used (an even subsample of larger clouds)
   double occlusion_tolerance = 0.03;  // a point is visible if z <= (1 + tol) x the z-buffer depth
+  // For starts that are already close (after SfM): the colour objective has a precision of its
+  // own (about 0.15-0.2 degrees on real scenes, from COLMAP's point colours and the sparse
+  // z-buffer), and an occluder without SfM points can pull a view degrees away.
+  double discard_below_median_move_deg = 0;  // > 0: when the median view moved less than this
+                                             // (degrees), every view keeps its start pose
+  double max_move_over_median = 0;           // > 0: a view moved more than this x the median move
+                                             // (rotation or centre) keeps its start pose
 };
 
 struct PointAlignReport {
   int levels = 0, rounds = 0;
   size_t points_used = 0;
   double initial_cost = 0, final_cost = 0;  // mean Huber cost per residual at the finest level
+  std::vector<int> reverted_views;          // views that kept their start pose (see the options above)
+  double median_move_deg = 0, median_move_frac = 0;  // how far the views moved (rotation; centre / radius)
+  bool discarded = false;                   // every view kept its start (discard_below_median_move_deg)
   double seconds = 0;
 };
 
