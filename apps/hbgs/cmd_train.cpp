@@ -231,6 +231,7 @@ gs::Status apply_recorded_options(const std::string& run, TrainArgs* a) {
   take("pose-noise-on", &a->pose_noise_on, true);
   take("optimize-poses", &a->optimize_poses, true);
   take("coarse-levels", &a->coarse_levels, true);
+  take("feature-refresh", &a->feature_refresh, true);
   take("pose-lr", &a->pose_lr, true);
   take("point-align", &a->point_align, true);
   take("register-passes", &a->register_passes, true);
@@ -260,6 +261,7 @@ std::string run_json(const TrainArgs& a) {
                   {"lpips-weights", a.lpips_weights},   {"threads", a.threads},
                   {"pose-noise", a.pose_noise},         {"pose-noise-on", a.pose_noise_on},
                   {"optimize-poses", a.optimize_poses}, {"coarse-levels", a.coarse_levels},
+                  {"feature-refresh", a.feature_refresh},
                   {"pose-lr", a.pose_lr},               {"point-align", a.point_align},
                   {"register-passes", a.register_passes}, {"pose-init", a.pose_init},
                   {"sfm-images", a.sfm_images}};
@@ -479,8 +481,8 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
   // the low-resolution phase would only cost detail (measured: 28.31 against 28.69 dB on synth).
   topt.coarse_levels = a.coarse_levels >= 0 ? a.coarse_levels : (a.optimize_poses && a.pose_init != "sfm" ? 2 : 0);
   topt.lr_pose_rotation_init = topt.lr_pose_translation_init = a.pose_lr;
+  topt.image_feature_refresh = a.feature_refresh >= 0 ? a.feature_refresh : (a.optimize_poses ? 250 : 0);  // features follow moving poses
   if (a.optimize_poses) {
-    topt.image_feature_refresh = 250;  // features follow the moving poses
     topt.pose_warmup = std::max(1, a.iterations / 10);
     if (a.register_passes > 0) {
       topt.pose_register_every = std::max(1, a.iterations / (2 * a.register_passes));
@@ -746,6 +748,10 @@ Command add_train_command(CLI::App& parent) {
                   "With --optimize-poses: registration passes (every training pose registered against the current model) over the first half")
       ->capture_default_str()
       ->check(CLI::Range(0, 1000));
+  sub->add_option("--feature-refresh", args->feature_refresh,
+                  "Recompute the image-based features every N iterations (-1: 250 with --optimize-poses, else 0; 0: never)")
+      ->capture_default_str()
+      ->check(CLI::Range(-1, 100000000));
   sub->add_option("--coarse-levels", args->coarse_levels,
                   "Coarse-to-fine halvings over the first 30% of iterations (-1: 2 with --optimize-poses unless --pose-init sfm, else 0)")
       ->capture_default_str()

@@ -88,6 +88,7 @@ struct TrainArgs {
   std::string colmap = "colmap";   // the COLMAP program for pose_init sfm
   std::string sfm_images = "auto"; // pose_init sfm: "auto", "train" or a folder (apps/hbgs/sfm_images.h)
   int coarse_levels = -1;
+  int feature_refresh = -1;        // image features recomputed every N iterations (-1: 250 with optimize_poses, else 0)
   double pose_lr = 5e-5;
   bool resume = false, force = false, quiet = false;
   std::vector<std::string> given;

@@ -30,6 +30,8 @@ constexpr uint32_t kCheckpointVersion = 2;  // 2: training poses and their Adam 
 double expon_lr(double lr0, double lr1, int steps, int it) {
   if (lr0 == lr1) return lr0;
   const double t = std::min(std::max(double(it) / double(std::max(steps, 1)), 0.0), 1.0);
+  // A zero end makes the schedule linear: log(0) is -inf, and 0 x -inf at the last step is NaN.
+  if (!(lr0 > 0 && lr1 > 0)) return (1 - t) * lr0 + t * lr1;
   return std::exp((1 - t) * std::log(lr0) + t * std::log(lr1));
 }
 

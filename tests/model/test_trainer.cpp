@@ -402,6 +402,22 @@ TEST_CASE("trainer: joint pose optimisation pulls noisy poses back towards the t
   CHECK(after.translation_mean_frac < 0.85 * before.translation_mean_frac);
 }
 
+TEST_CASE("trainer: a zero initial pose rate keeps every pose finite through the last iteration") {
+  // Found by `hbgs train --pose-lr 0`: the log-linear schedule from 0 gave NaN at its last step
+  // (0 x log 0), which turned the last trained view's pose into NaN.
+  TrainOptions o = quiet_options(12);
+  o.optimize_poses = true;
+  o.schedule_iterations = 12;
+  o.lr_pose_rotation_init = o.lr_pose_translation_init = 0;
+  platform::ThreadPool pool(2);
+  std::unique_ptr<Trainer> t = make_trainer(initial_model(config()), o, &pool);
+  for (int i = 0; i < 12; ++i) REQUIRE(t->step(nullptr).ok());
+  for (const Camera& c : t->cameras()) {
+    for (float r : c.pose.R) CHECK(std::isfinite(r));
+    for (float x : c.pose.t) CHECK(std::isfinite(x));
+  }
+}
+
 TEST_CASE("trainer: checkpoint at 15 then resume to 30 is bit-identical to an uninterrupted run") {
   check_resume(nullptr);
   platform::ThreadPool pool(2);
