@@ -346,19 +346,19 @@ int run_batch(const RegisterArgs& a) {
   }
   const double n = double(rows.size());
   nlohmann::ordered_json summary = {{"views", rows.size()},
-                            {"median_initial_rotation_deg", median_of(init_rot)},
-                            {"median_initial_translation", median_of(init_trans)},
-                            {"median_rotation_deg", median_of(rot)},
+                            {"median_initial_rotation_deg", gs::median(init_rot)},
+                            {"median_initial_translation", gs::median(init_trans)},
+                            {"median_rotation_deg", gs::median(rot)},
                             {"mean_rotation_deg", mean_of(rot)},
-                            {"median_translation", median_of(trans)},
-                            {"median_translation_fraction", median_of(trans) / radius},
+                            {"median_translation", gs::median(trans)},
+                            {"median_translation_fraction", gs::median(trans) / radius},
                             {"success_rate", double(success) / n},
                             {"converged_rate", double(converged) / n},
                             {"psnr_at_start_poses", m_start->psnr},
                             {"ssim_at_start_poses", m_start->ssim},
                             {"psnr_registered", m_reg->psnr},
                             {"ssim_registered", m_reg->ssim},
-                            {"median_ms", median_of(ms)},
+                            {"median_ms", gs::median(ms)},
                             {"mean_ms", mean_of(ms)},
                             {"total_seconds", total.seconds()}};
   nlohmann::ordered_json j = {{"model", absolute_path(src->model_path)},
@@ -392,12 +392,12 @@ int run_batch(const RegisterArgs& a) {
               a.views.c_str(), src->dataset.c_str(), src->model_path.c_str(), a.solver.c_str(), a.downscale,
               pool.num_threads());
   std::printf("  start: %s (median %.2f deg, %.3f of the scene radius %.4g)\n", gs::pose::describe(noise).c_str(),
-              median_of(init_rot), median_of(init_trans) / radius, radius);
-  std::printf("  final: median rotation %.4f deg, median translation %.4g (%.5f of the radius)\n", median_of(rot),
-              median_of(trans), median_of(trans) / radius);
+              gs::median(init_rot), gs::median(init_trans) / radius, radius);
+  std::printf("  final: median rotation %.4f deg, median translation %.4g (%.5f of the radius)\n", gs::median(rot),
+              gs::median(trans), gs::median(trans) / radius);
   std::printf("  success (< 1 deg and < 1%% of the radius) %zu/%zu, converged verdict %zu/%zu\n", success, rows.size(),
               converged, rows.size());
-  std::printf("  time per view: median %.1f ms, mean %.1f ms (total %.1f s)\n", median_of(ms), mean_of(ms),
+  std::printf("  time per view: median %.1f ms, mean %.1f ms (total %.1f s)\n", gs::median(ms), mean_of(ms),
               total.seconds());
   std::printf("  images: PSNR %.2f dB / SSIM %.4f at the start poses, %.2f dB / %.4f at the registered poses\n",
               m_start->psnr, m_start->ssim, m_reg->psnr, m_reg->ssim);

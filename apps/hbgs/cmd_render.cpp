@@ -201,7 +201,7 @@ int run_render_model(const RenderArgs& a) {
   j["psnr_definition"] = "10*log10(255^2/MSE) over 8-bit RGB; null if identical";
   j["views"] = std::move(jv);
   j["summary"] = {{"views", r->views.size()},
-                  {"median_ms", median_of(times)},
+                  {"median_ms", gs::median(times)},
                   {"mean_ms", mean_of(times)},
                   {"mean_psnr_db", r->psnr},
                   {"mean_ssim", r->ssim},
@@ -211,7 +211,7 @@ int run_render_model(const RenderArgs& a) {
     return fail(cmd, st.to_string());
   std::printf("hbgs render: %zu views (split %s) of %s from the model %s (%zu anchors)\n", r->views.size(),
               a.split.c_str(), src->dataset.c_str(), src->model_path.c_str(), model->anchor_count);
-  std::printf("  render: median %.2f ms, mean %.2f ms per view; %d threads\n", median_of(times), mean_of(times),
+  std::printf("  render: median %.2f ms, mean %.2f ms per view; %d threads\n", gs::median(times), mean_of(times),
               pool.num_threads());
   std::printf("  PSNR vs dataset images: mean %s, SSIM %.4f\n", psnr_text(r->psnr, 2).c_str(), r->ssim);
   std::printf("  images: %s/  (timings: %s)\n", a.out.c_str(), json_path.string().c_str());
@@ -346,7 +346,7 @@ int run_render(const RenderArgs& a) {
     times.push_back(r.ms);
     if (std::isfinite(r.psnr)) psnrs.push_back(r.psnr);
   }
-  const double median_ms = median_of(times), mean_ms = mean_of(times);
+  const double median_ms = gs::median(times), mean_ms = mean_of(times);
   const double mean_psnr = psnrs.empty() ? std::numeric_limits<double>::quiet_NaN() : mean_of(psnrs);
   auto number_or_null = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
 

@@ -178,7 +178,7 @@ Progress load_progress(const std::string& run, int at) {
   p.iteration_ms = j.value("iteration_ms", std::vector<float>());
   if (p.iteration_ms.size() > size_t(at)) p.iteration_ms.resize(size_t(at));
   if (saved != at) {
-    const double ms = median_of(std::vector<double>(p.iteration_ms.begin(), p.iteration_ms.end()));
+    const double ms = gs::median(std::vector<double>(p.iteration_ms.begin(), p.iteration_ms.end()));
     if (saved < at) p.train_seconds += 1e-3 * ms * (at - saved);
     else if (!p.rows.empty()) p.train_seconds = p.rows.back().seconds;
     std::fprintf(stderr, "note: %s was saved at iteration %d, the checkpoint at %d; training time estimated\n",
@@ -565,7 +565,7 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
     nlohmann::json extra = {
         {"iterations", it},
         {"train_seconds", progress.train_seconds},
-        {"median_iteration_ms", median_of(std::vector<double>(progress.iteration_ms.begin(), progress.iteration_ms.end()))},
+        {"median_iteration_ms", gs::median(std::vector<double>(progress.iteration_ms.begin(), progress.iteration_ms.end()))},
         {"model_bytes", m.file_bytes()},
         {"model_file_bytes", file_size_or_zero(model_file)},
         {"anchors", m.anchor_count},
@@ -662,7 +662,7 @@ int run_train(const TrainArgs& args, TrainSummary* summary) {
   s.have_test_views = have_test;
   s.final_eval = final_eval;
   s.train_seconds = progress.train_seconds;
-  s.median_iteration_ms = median_of(std::vector<double>(progress.iteration_ms.begin(), progress.iteration_ms.end()));
+  s.median_iteration_ms = gs::median(std::vector<double>(progress.iteration_ms.begin(), progress.iteration_ms.end()));
   s.anchors = trainer.model().anchor_count;
   s.train_views = train_views.size();
   s.test_views = test_views.size();

@@ -13,6 +13,7 @@
 #include <CLI/CLI.hpp>
 
 #include "gs/platform/clock.h"
+#include "gs/stats.h"
 
 namespace hbgs::cli {
 
@@ -59,16 +60,6 @@ class Stopwatch {
  private:
   double start_;
 };
-
-inline double median_of(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(mid), v.end());
-  const double hi = v[mid];
-  if (v.size() % 2 == 1) return hi;
-  const double lo = *std::max_element(v.begin(), v.begin() + std::ptrdiff_t(mid));
-  return 0.5 * (lo + hi);
-}
 
 inline double mean_of(const std::vector<double>& v) {
   return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / double(v.size());

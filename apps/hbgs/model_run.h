@@ -86,7 +86,7 @@ struct TrainArgs {
   int register_passes = 0;  // with optimize_poses: registration passes over the first half
   std::string pose_init = "none";  // with optimize_poses: "sfm" = global initialisation by COLMAP first
   std::string colmap = "colmap";   // the COLMAP program for pose_init sfm
-  std::string sfm_images = "auto"; // pose_init sfm: "auto", "train" or a folder (apps/hbgs/sfm_images.h)
+  std::string sfm_images = "auto"; // pose_init sfm: "auto", "train" or a folder (gs/capture/sfm_images.h)
   int coarse_levels = -1;
   int feature_refresh = -1;        // image features recomputed every N iterations (-1: 250 with optimize_poses, else 0)
   double pose_lr = 5e-5;

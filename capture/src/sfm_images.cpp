@@ -44,8 +44,8 @@ Expected<SfmImages> load_folder(const std::string& folder, const std::vector<con
     if (!im.ok()) return im.status();
     if (!same_aspect(*v, im->width, im->height) || (!out.images.empty() && im->width != out.images[0].width))
       return invalid_argument(path + ": " + std::to_string(im->width) + "x" + std::to_string(im->height) +
-                                  " is not the training image's " + std::to_string(v->camera.intr.width) + "x" +
-                                  std::to_string(v->camera.intr.height) + " scaled uniformly like the other views");
+                              " is not the training image's " + std::to_string(v->camera.intr.width) + "x" +
+                              std::to_string(v->camera.intr.height) + " scaled uniformly like the other views");
     out.cameras.push_back(scaled_to(v->camera, im->width, im->height));
     out.images.push_back(std::move(im).value());
   }
@@ -75,7 +75,7 @@ Status check_sfm_images_choice(const std::string& dataset, const std::string& ch
 }
 
 Expected<SfmImages> choose_sfm_images(const std::string& dataset, const std::string& choice,
-                                          const std::vector<const io::DatasetView*>& views, int max_size) {
+                                      const std::vector<const io::DatasetView*>& views, int max_size) {
   if (views.empty()) return invalid_argument("no views to reconstruct");
   if (choice == "train") return as_loaded(views);
   if (choice != "auto") {

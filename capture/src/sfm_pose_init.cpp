@@ -13,6 +13,7 @@
 #include "gs/io/colmap.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
+#include "gs/stats.h"
 
 namespace gs::capture {
 namespace fs = std::filesystem;
@@ -57,12 +58,6 @@ class PointGrid {
   std::unordered_map<uint64_t, std::vector<uint32_t>> cells_;
 };
 
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + long(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 // Extent of a point set: RMS distance from its mean.
 double rms_spread(const double* p, size_t n) {
   double m[3] = {0, 0, 0};
@@ -102,7 +97,7 @@ pose::Sim3 icp_sim3(const double* source, size_t ns, const double* target, size_
       }
     }
     if (dists.size() < 10) break;
-    const double med = median_of(dists);
+    const double med = median(dists);
     if (first_median < 0) first_median = med;
     last_median = med;
     for (size_t i = 0; i < ns; ++i)

@@ -2,6 +2,7 @@
 // Camera-pose utilities: se(3) twists, checked pose input, seeded pose noise, Sim(3)-aligned
 // pose errors. See gs/pose.h for the conventions; all arithmetic is in double.
 #include "gs/pose.h"
+#include "gs/stats.h"
 
 #include <Eigen/Dense>
 
@@ -167,13 +168,6 @@ class ViewRng {
   double spare_ = 0;
   bool has_spare_ = false;
 };
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const size_t m = v.size() / 2;
-  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
 
 std::string trim(const std::string& s) {
   const size_t b = s.find_first_not_of(" \t\r\n");

@@ -17,16 +17,10 @@
 #include "gs/model/trainer.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
+#include "gs/stats.h"
 
 namespace gs::model {
 namespace {
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 double mean(const std::vector<ViewMetrics>& views, double ViewMetrics::*field) {
   if (views.empty()) return 0.0;

@@ -9,6 +9,7 @@
 #include "gs/platform/clock.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose.h"
+#include "gs/stats.h"
 
 namespace gs::model {
 
@@ -43,13 +44,7 @@ void pose_to_double(const Pose& pose, double R[9], double t[3]) {
   for (int i = 0; i < 3; ++i) t[i] = pose.t[i];
 }
 
-constexpr double kNear = 0.05;
-
-double median_of(std::vector<double> x) {
-  if (x.empty()) return 0;
-  std::nth_element(x.begin(), x.begin() + std::ptrdiff_t(x.size() / 2), x.end());
-  return x[x.size() / 2];
-}  // camera-space depth below which a point is ignored
+constexpr double kNear = 0.05;  // camera-space depth below which a point is ignored
 
 struct Aligner {
   const float* xyz = nullptr;
@@ -217,8 +212,8 @@ void keep_trusted_moves(const std::vector<Pose>& start, double radius, const Poi
     move_deg[v] = pose::rotation_error_deg(start[v], (*cameras)[v].pose);
     move_frac[v] = std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2])) / radius;
   }
-  rep->median_move_deg = median_of(move_deg);
-  rep->median_move_frac = median_of(move_frac);
+  rep->median_move_deg = median(move_deg);
+  rep->median_move_frac = median(move_frac);
   rep->discarded = rep->median_move_deg < options.discard_below_median_move_deg;
   const double k = options.max_move_over_median;
   for (size_t v = 0; v < V; ++v) {

@@ -15,21 +15,21 @@
 namespace gs::capture {
 
 struct SfmImages {
-  std::string folder;                 // where they came from ("" = the training images as loaded)
+  std::string folder;             // where they came from ("" = the training images as loaded)
   std::vector<io::Image8> images; // [views] when folder is set, else empty
   std::vector<Camera> cameras;    // [views]: the views' cameras with intrinsics at the images' size
-  std::string note;                   // auto only: why a larger folder was passed over, if one was
+  std::string note;               // auto only: why a larger folder was passed over, if one was
 };
+
+// Checks that an explicit folder exists, without reading it (for validation before any work).
+Status check_sfm_images_choice(const std::string& dataset, const std::string& choice);
 
 // choice: "train" (the loaded images), "auto" (the largest images* folder of the dataset, at most
 // max_size px on the long side, that holds every view at a larger size with the same aspect; else
 // the loaded images), or a folder (inside the dataset, or a path) that must hold every view.
-// Checks that an explicit folder exists, without reading it (for validation before any work).
-Status check_sfm_images_choice(const std::string& dataset, const std::string& choice);
-
 // Errors (explicit folder only): missing file, an image whose size is not the view's scaled
 // uniformly (within a pixel).
 Expected<SfmImages> choose_sfm_images(const std::string& dataset, const std::string& choice,
-                                          const std::vector<const io::DatasetView*>& views, int max_size);
+                                      const std::vector<const io::DatasetView*>& views, int max_size);
 
 }  // namespace gs::capture

@@ -1,0 +1,18 @@
+// SPDX-License-Identifier: MIT
+// Small summary statistics shared by the reports (pose errors, timings, ICP and alignment moves).
+#pragma once
+
+#include <algorithm>
+#include <vector>
+
+namespace gs {
+
+// The median (the mean of the middle two for an even count); 0 for no values.
+inline double median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const size_t m = values.size() / 2;
+  return values.size() % 2 ? values[m] : 0.5 * (values[m - 1] + values[m]);
+}
+
+}  // namespace gs
