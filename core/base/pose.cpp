@@ -2,6 +2,7 @@
 // Camera-pose utilities: se(3) twists, checked pose input, seeded pose noise, Sim(3)-aligned
 // pose errors. See gs/pose.h for the conventions; all arithmetic is in double.
 #include "gs/pose.h"
+#include "gs/random.h"
 #include "gs/stats.h"
 
 #include <Eigen/Dense>
@@ -124,13 +125,7 @@ std::string fmt(double v) {
   return buf;
 }
 
-// SplitMix64 (Steele, Lea, Flood 2014): a tiny, well-mixed generator; one stream per view.
-uint64_t mix64(uint64_t z) {
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
-
+// One SplitMix64 stream (gs/random.h) per view.
 class ViewRng {
  public:
   ViewRng(uint64_t seed, uint64_t view) : state_(mix64(mix64(seed + 0x9E3779B97F4A7C15ull) ^ (view + 1) * 0xD1B54A32D192ED03ull)) {}

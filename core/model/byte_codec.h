@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "../io/io_util.h"
+#include "gs/random.h"
 #include "gs/status.h"
 
 namespace gs::model::detail {
@@ -119,16 +120,6 @@ inline uint64_t fnv1a64(const uint8_t* p, size_t n) {
   return h;
 }
 
-// splitmix64: the project's portable seeded generator (identical on every platform).
-struct SplitMix64 {
-  uint64_t state = 0;
-  uint64_t next() {
-    uint64_t z = (state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-  double uniform() { return double(next() >> 11) * (1.0 / 9007199254740992.0); }  // [0, 1)
-};
+using SplitMix64 = gs::SplitMix64;  // gs/random.h
 
 }  // namespace gs::model::detail

@@ -7,17 +7,11 @@
 #include <cmath>
 #include <cstdint>
 
+#include "gs/random.h"
+
 namespace hbgs::synth::detail {
 
-// SplitMix64 finaliser: a bijective 64-bit mix, used both as hash and as RNG step.
-inline uint64_t mix64(uint64_t x) {
-  x ^= x >> 30;
-  x *= 0xbf58476d1ce4e5b9ULL;
-  x ^= x >> 27;
-  x *= 0x94d049bb133111ebULL;
-  x ^= x >> 31;
-  return x;
-}
+using gs::mix64;  // SplitMix64's finaliser (gs/random.h): hash and RNG step
 
 inline uint64_t hash_combine(uint64_t h, uint64_t v) { return mix64(h ^ (v + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2))); }
 
