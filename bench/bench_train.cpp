@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: MIT
-// bench_train: end-to-end training-step timing of gs::model::Trainer on a COLMAP dataset (default
+// bench_train: end-to-end training-step timing on a COLMAP dataset (default
 // ../shared/data/snowmiku_plush): untimed warm-up iterations, then median / mean / p90 iteration
-// milliseconds with the anchor and Gaussian counts, the kernel ISA and the thread count.
+// milliseconds with the anchor and Gaussian counts, the kernel ISA and the thread count. It times
+// the library's training job (gs::jobs::TrainSession) with the job's own defaults, so it runs the
+// configuration `hbgs train` runs for the same dataset, seed and iterations (warm-up + timed).
 #include <algorithm>
 #include <cstdio>
 #include <memory>
@@ -13,8 +15,8 @@
 
 #include "bench_common.h"
 #include "bench_harness.h"
-#include "gs/io/colmap.h"
-#include "gs/model/trainer.h"
+#include "gs/jobs/train.h"
+#include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/simd/kernel_table.h"
 
@@ -39,46 +41,37 @@ double percentile(std::vector<double> v, double q) {
 
 int run(int argc, char** argv) {
   CLI::App app{"bench_train: training iteration timings of the hybrid anchor model on a COLMAP dataset"};
-  std::string dataset = GS_BENCH_DEFAULT_DATASET, isa_name, features = "paper", json_path;
-  int iterations = 300, warmup = 20, threads = 0, max_width = 0;
-  uint64_t seed = 0;
-  app.add_option("--dataset", dataset, "COLMAP dataset with SfM points")->capture_default_str();
+  jobs::TrainRunOptions o;  // the job's defaults, as `hbgs train` has them
+  o.dataset = GS_BENCH_DEFAULT_DATASET;
+  std::string json_path;
+  int iterations = 300, warmup = 20;
+  app.add_option("--dataset", o.dataset, "COLMAP dataset with SfM points")->capture_default_str();
   app.add_option("--iterations", iterations, "timed iterations")->capture_default_str()->check(CLI::Range(1, 10000000));
   app.add_option("--warmup", warmup, "untimed iterations first")->capture_default_str()->check(CLI::Range(0, 10000000));
-  app.add_option("--threads", threads, "worker threads (0: all CPUs)")->capture_default_str();
-  app.add_option("--max-width", max_width, "downscale images to at most this width (0: as stored)")->capture_default_str();
-  app.add_option("--isa", isa_name, "kernel table (default: the best for this CPU)");
-  app.add_option("--image-features", features, "paper or none")->capture_default_str()->check(CLI::IsMember({"paper", "none"}));
-  app.add_option("--seed", seed, "model and view-order seed")->capture_default_str();
-  app.add_option("--json", json_path, "write the results as JSON to this file");
+  app.add_option("--threads", o.threads, "worker threads (0: all CPUs)")->capture_default_str();
+  app.add_option("--max-width", o.max_width, "downscale images to at most this width (0: as stored)")->capture_default_str();
+  app.add_option("--isa", o.isa, "kernel table (default: the best for this CPU)");
+  app.add_option("--image-features", o.image_features, "paper or none")->capture_default_str()->check(CLI::IsMember({"paper", "none"}));
+  app.add_option("--seed", o.seed, "model and view-order seed")->capture_default_str();
+  app.add_option("--json", json_path, "write the results (and every iteration's loss) as JSON to this file");
   CLI11_PARSE(app, argc, argv);
 
-  if (!platform::is_directory(dataset)) {
-    std::printf("bench_train: skipped: dataset %s not found (pass --dataset DIR)\n", dataset.c_str());
+  if (!platform::is_directory(o.dataset)) {
+    std::printf("bench_train: skipped: dataset %s not found (pass --dataset DIR)\n", o.dataset.c_str());
     return 0;
   }
-  const simd::KernelTable* kernels = isa_name.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(isa_name.c_str());
-  if (!kernels) die("kernel table '" + isa_name + "' is not compiled in or not supported by this CPU");
-  io::DatasetOptions dopt;
-  dopt.max_width = max_width;
-  Expected<io::Dataset> ds = io::load_dataset(dataset, dopt);
-  if (!ds.ok()) die(ds.status().to_string());
-  std::vector<const io::DatasetView*> views;
-  std::vector<const Camera*> cameras;
-  for (const io::DatasetView& v : ds->views)
-    if (!v.is_test) views.push_back(&v), cameras.push_back(&v.camera);
-  model::ModelConfig config;
-  config.image_features = *model::parse_image_feature_mode(features);
-  Expected<model::HybridModel> m =
-      model::create_model(config, ds->points_xyz.data(), ds->points_xyz.size() / 3, model::cameras_extent(cameras), seed);
-  if (!m.ok()) die(m.status().to_string());
-  model::TrainOptions topt;
-  topt.iterations = topt.schedule_iterations = warmup + iterations;
-  topt.seed = seed;
-  platform::ThreadPool pool(threads);
-  Expected<std::unique_ptr<model::Trainer>> trainer = model::Trainer::create(std::move(m).value(), views, topt, &pool, kernels);
-  if (!trainer.ok()) die(trainer.status().to_string());
+  // The learning-rate schedules span warm-up + timed iterations, as a run of that length would.
+  o.iterations = warmup + iterations;
+  Expected<std::unique_ptr<jobs::TrainSession>> session = jobs::TrainSession::create(o, nullptr);
+  if (!session.ok()) die(session.status().to_string());
+  model::Trainer& trainer = (*session)->trainer();
+  platform::ThreadPool& pool = (*session)->pool();
+  const std::vector<const io::DatasetView*>& views = (*session)->train_views();
+  const simd::KernelTable* kernels = o.isa.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(o.isa.c_str());
+  const std::string& dataset = o.dataset;
+  const std::string& features = o.image_features;
 
+  std::vector<float> losses;
   std::vector<double> ms;
   double gaussians = 0, anchors = 0;
   double cpu0 = process_cpu_seconds();
@@ -86,7 +79,8 @@ int run(int argc, char** argv) {
     if (i == warmup) cpu0 = process_cpu_seconds();
     model::IterationStats st;
     const uint64_t t0 = platform::now_ns();
-    if (Status s = (*trainer)->step(&st); !s.ok()) die("iteration " + std::to_string(i + 1) + ": " + s.to_string());
+    if (Status s = trainer.step(&st); !s.ok()) die("iteration " + std::to_string(i + 1) + ": " + s.to_string());
+    losses.push_back(float(st.step.loss));
     if (i < warmup) continue;
     ms.push_back(double(platform::now_ns() - t0) * 1e-6);
     gaussians += double(st.step.gaussians);
@@ -125,7 +119,9 @@ int run(int argc, char** argv) {
                         {"anchors", anchors},
                         {"mean_gaussians", gaussians / double(iterations)},
                         {"cpu_model", mi.cpu_model},
-                        {"load_average", load_average()}};
+                        {"load_average", load_average()},
+                        {"seed", o.seed},
+                        {"losses", losses}};
     if (!write_output(json_path, j.dump(2) + "\n", "bench_train")) return 1;
   }
   return 0;

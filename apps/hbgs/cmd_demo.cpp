@@ -10,7 +10,7 @@
 #include "common.h"
 #include "gs/metrics/lpips.h"
 #include "gs/platform/file.h"
-#include "model_run.h"
+#include "gs/jobs/train.h"
 
 #ifdef HBGS_HAVE_SYNTH
 #include "hbgs/synth.h"
@@ -41,7 +41,7 @@ std::string fixed(const char* format, double v) {
   return buf;
 }
 
-std::string report_markdown(const TrainSummary& s, const std::string& scene, double total_seconds) {
+std::string report_markdown(const gs::jobs::TrainRunSummary& s, const std::string& scene, double total_seconds) {
   const gs::model::EvalResult& e = s.final_eval;
   const std::string method = "ours_" + std::to_string(s.iterations);
   std::string md = "# hbgs demo\n\n";
@@ -89,7 +89,7 @@ int run_demo(const DemoArgs& a) {
   }
   std::fflush(stdout);
 
-  TrainArgs t;
+  gs::jobs::TrainRunOptions t;
   t.dataset = scene.string();
   t.out = (root / "run").string();
   t.iterations = a.iterations;
@@ -99,9 +99,8 @@ int run_demo(const DemoArgs& a) {
   t.eval_every = std::max(50, a.iterations / 20);
   t.checkpoint_every = 0;
   t.lpips_weights = a.lpips_weights;
-  t.quiet = a.quiet;
-  TrainSummary s;
-  if (int rc = run_train(t, &s); rc != kExitOk) return rc;
+  gs::jobs::TrainRunSummary s;
+  if (int rc = run_train(t, a.quiet, &s); rc != kExitOk) return rc;
 
   const std::string report = (root / "report.md").string();
   if (gs::Status st = gs::platform::write_file_atomic(report, report_markdown(s, "scene", total.seconds())); !st.ok())

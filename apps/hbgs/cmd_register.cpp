@@ -25,10 +25,12 @@
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose.h"
-#include "model_run.h"
-#include "pose_cli.h"
+#include "gs/jobs/run_folder.h"
+#include "gs/jobs/pose_truth.h"
 
 namespace hbgs::cli {
+
+using namespace gs::jobs;  // run folders and pose truth
 namespace {
 
 namespace fs = std::filesystem;

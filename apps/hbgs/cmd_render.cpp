@@ -27,9 +27,11 @@
 #include "gs/render.h"
 #include "gs/scene_init.h"
 #include "gs/simd/kernel_table.h"
-#include "model_run.h"
+#include "gs/jobs/run_folder.h"
 
 namespace hbgs::cli {
+
+using namespace gs::jobs;  // run folders and pose truth
 namespace {
 
 namespace fs = std::filesystem;

@@ -12,6 +12,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "gs/jobs/train.h"
 #include "gs/platform/clock.h"
 #include "gs/stats.h"
 
@@ -42,6 +43,10 @@ Command add_compare_poses_command(CLI::App& parent);
 // `hbgs bench ARGS...` bypasses CLI11 (except `hbgs bench --help`): ARGS go to bench_render as given.
 bool bench_passes_through(int argc, char** argv);
 int run_bench(const std::vector<std::string>& pass_through);
+
+// `hbgs train` (also run by `hbgs demo`): the job with its progress on stderr (unless quiet) and
+// the summary on stdout.
+int run_train(const gs::jobs::TrainRunOptions& options, bool quiet, gs::jobs::TrainRunSummary* summary);
 
 // "hbgs <cmd>: error: <message>" on stderr; returns kExitRuntime so callers can `return fail(...)`.
 inline int fail(const char* cmd, const std::string& message) {

@@ -21,5 +21,7 @@ Status write_file_atomic(const std::string& path, const std::string& text);
 Status make_dirs(const std::string& path);  // mkdir -p; an existing directory is success
 bool file_exists(const std::string& path);   // any kind of entry (file, directory, device), after symlinks
 bool is_directory(const std::string& path);
+// Absolute path of the running program (/proc/self/exe), "" when the OS does not say.
+std::string executable_path();
 
 }  // namespace gs::platform

@@ -1,43 +1,45 @@
 // SPDX-License-Identifier: MIT
-// Pose glue of the CLI (see pose_cli.h).
-#include "pose_cli.h"
+// Pose truth, noise and errors for the jobs (see gs/jobs/pose_truth.h).
+#include "gs/jobs/pose_truth.h"
 
 #include <map>
 
-namespace hbgs::cli {
+#include "json_util.h"
 
-gs::Status apply_pose_noise(gs::io::Dataset* ds, const std::string& spec, const std::string& which, PoseTruth* truth) {
-  gs::pose::PoseNoise noise;
-  if (gs::Status st = gs::pose::parse_pose_noise(spec, &noise); !st.ok()) return gs::invalid_argument("--pose-noise: " + st.message());
+namespace gs::jobs {
+
+Status apply_pose_noise(io::Dataset* ds, const std::string& spec, const std::string& which, PoseTruth* truth) {
+  pose::PoseNoise noise;
+  if (Status st = pose::parse_pose_noise(spec, &noise); !st.ok()) return invalid_argument("--pose-noise: " + st.message());
   if (which != "train" && which != "test" && which != "all")
-    return gs::invalid_argument("--pose-noise-on: '" + which + "' is not one of train, test, all");
+    return invalid_argument("--pose-noise-on: '" + which + "' is not one of train, test, all");
   truth->poses.clear();
-  std::vector<gs::Pose> train;
-  for (const gs::io::DatasetView& v : ds->views) {
+  std::vector<Pose> train;
+  for (const io::DatasetView& v : ds->views) {
     truth->poses.push_back(v.camera.pose);
     if (!v.is_test) train.push_back(v.camera.pose);
   }
-  gs::pose::scene_frame(train.data(), train.size(), truth->centre, &truth->radius);
-  if (noise.kind == gs::pose::PoseNoise::kNone) return gs::Status::Ok();
+  pose::scene_frame(train.data(), train.size(), truth->centre, &truth->radius);
+  if (noise.kind == pose::PoseNoise::kNone) return Status::Ok();
   // Each view draws its own stream (seeded by its index in the whole dataset), so which views are
   // perturbed does not change any one view's noise.
-  std::vector<gs::Pose> all = truth->poses;
-  gs::pose::perturb_poses(noise, truth->centre, truth->radius, all.data(), all.size());
+  std::vector<Pose> all = truth->poses;
+  pose::perturb_poses(noise, truth->centre, truth->radius, all.data(), all.size());
   for (size_t i = 0; i < ds->views.size(); ++i) {
     const bool test = ds->views[i].is_test;
     if (which == "all" || (which == "test") == test) ds->views[i].camera.pose = all[i];
   }
-  return gs::Status::Ok();
+  return Status::Ok();
 }
 
-gs::pose::PoseErrors errors_for(const std::vector<gs::Pose>& estimated, const std::vector<size_t>& views,
+pose::PoseErrors errors_for(const std::vector<Pose>& estimated, const std::vector<size_t>& views,
                                 const PoseTruth& truth, bool align) {
-  std::vector<gs::Pose> gt;
+  std::vector<Pose> gt;
   for (size_t i : views) gt.push_back(truth.poses[i]);
-  return gs::pose::pose_errors(estimated.data(), gt.data(), gt.size(), truth.radius, align);
+  return pose::pose_errors(estimated.data(), gt.data(), gt.size(), truth.radius, align);
 }
 
-nlohmann::json pose_errors_json(const gs::pose::PoseErrors& e, bool per_view, const std::vector<std::string>& names) {
+nlohmann::json pose_errors_json(const pose::PoseErrors& e, bool per_view, const std::vector<std::string>& names) {
   nlohmann::json j = {{"views", e.count},
                       {"sim3_aligned", e.aligned},
                       {"sim3_scale", e.scale},
@@ -61,23 +63,23 @@ nlohmann::json pose_errors_json(const gs::pose::PoseErrors& e, bool per_view, co
   return j;
 }
 
-gs::Status write_posed_model(const std::string& dataset_root, const std::vector<std::string>& names,
-                             const std::vector<gs::Pose>& poses, const std::string& out_dir) {
-  gs::Expected<gs::io::ColmapModel> model = gs::io::read_colmap_model(dataset_root + "/sparse/0");
+Status write_posed_model(const std::string& dataset_root, const std::vector<std::string>& names,
+                             const std::vector<Pose>& poses, const std::string& out_dir) {
+  Expected<io::ColmapModel> model = io::read_colmap_model(dataset_root + "/sparse/0");
   if (!model.ok()) return model.status();
   std::map<std::string, size_t> index;
   for (size_t i = 0; i < names.size(); ++i) index[names[i]] = i;
   size_t replaced = 0;
-  for (gs::io::ColmapImage& im : model->images) {
+  for (io::ColmapImage& im : model->images) {
     const auto it = index.find(im.name);
     if (it == index.end()) continue;
-    gs::io::pose_to_colmap(poses[it->second], im.qvec, im.tvec);
+    io::pose_to_colmap(poses[it->second], im.qvec, im.tvec);
     ++replaced;
   }
   if (replaced != names.size())
-    return gs::invalid_argument(dataset_root + "/sparse/0: " + std::to_string(names.size() - replaced) +
+    return invalid_argument(dataset_root + "/sparse/0: " + std::to_string(names.size() - replaced) +
                                 " of the posed images are not in the COLMAP model");
-  return gs::io::write_colmap_text(*model, out_dir);
+  return io::write_colmap_text(*model, out_dir);
 }
 
-}  // namespace hbgs::cli
+}  // namespace gs::jobs

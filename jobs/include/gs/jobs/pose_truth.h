@@ -1,0 +1,36 @@
+// SPDX-License-Identifier: MIT
+// What the training, registration and evaluation jobs share about camera poses: applying the seeded
+// pose-noise protocol to a loaded dataset while keeping the true poses, errors against them, and
+// writing a COLMAP text model with refined poses.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "gs/io/colmap.h"
+#include "gs/pose.h"
+#include "gs/status.h"
+
+namespace gs::jobs {
+
+// True poses of the views (before any noise) and the scene frame of the training cameras.
+struct PoseTruth {
+  std::vector<Pose> poses;  // [dataset.views]
+  double centre[3] = {0, 0, 0};
+  double radius = 1;        // largest distance of a training camera centre from their mean
+};
+
+// Records the true poses, then perturbs the poses of the views in `which` ("train", "test" or
+// "all") as `spec` says (gs::pose::parse_pose_noise). Errors name the option.
+Status apply_pose_noise(io::Dataset* dataset, const std::string& spec, const std::string& which, PoseTruth* truth);
+
+// Errors of estimated[i] against the truth of dataset view views[i].
+pose::PoseErrors errors_for(const std::vector<Pose>& estimated, const std::vector<size_t>& views,
+                            const PoseTruth& truth, bool align);
+
+// Writes <out_dir>/{cameras,images,points3D}.txt: the dataset's own COLMAP model with the poses of
+// the named images replaced (names[i] gets poses[i]).
+Status write_posed_model(const std::string& dataset_root, const std::vector<std::string>& names,
+                         const std::vector<Pose>& poses, const std::string& out_dir);
+
+}  // namespace gs::jobs

@@ -1,0 +1,62 @@
+// SPDX-License-Identifier: MIT
+// What the jobs share about a training run folder: its file names (run.json names the dataset
+// and options), finding the model and dataset behind a run or .hbgs path, loading a dataset split,
+// and the LPIPS weights.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gs/io/colmap.h"
+#include "gs/metrics/lpips.h"
+#include "gs/status.h"
+
+namespace gs::jobs {
+
+// File names inside a run folder.
+inline constexpr const char* kRunJson = "run.json";
+inline constexpr const char* kModelFile = "model.hbgs";
+inline constexpr const char* kCheckpointFile = "checkpoint.bin";
+inline constexpr const char* kProgressFile = "progress.json";  // train-time figures at the checkpoint
+inline constexpr const char* kResultsJson = "results.json";
+inline constexpr const char* kPerViewJson = "per_view.json";
+inline constexpr const char* kPsnrCsv = "psnr_vs_time.csv";
+inline constexpr const char* kPsnrSvg = "psnr_vs_time.svg";
+
+// True for a .hbgs file or a folder holding run.json or model.hbgs (a training run).
+bool is_model_input(const std::string& path);
+
+// The model file, dataset and image width limit behind a run folder or .hbgs file. dataset and
+// max_width come from the run's run.json unless overridden (dataset_override non-empty,
+// max_width_override >= 0). run_dir is the folder holding the model.
+struct ModelSource {
+  std::string model_path, run_dir, dataset;
+  int max_width = 0;
+};
+Expected<ModelSource> resolve_model_source(const std::string& path, const std::string& dataset_override,
+                                           int max_width_override);
+
+// Loads the dataset views of split "test", "train" or "all"; errors name the dataset and split.
+struct LoadedDataset {
+  io::Dataset dataset;
+  std::vector<const io::DatasetView*> views;  // the chosen split, into dataset.views
+};
+Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& root, int max_width,
+                                                             const std::string& split);
+
+// The default LPIPS-Alex weights folder: $HBGS_LPIPS_WEIGHTS when set, else the first
+// shared/data/lpips_alex (holding weights.bin) beside the current folder or beside one of the
+// program's ancestor folders (a checkout next to ../shared); "" when there is none. Nothing about
+// the build machine is compiled in.
+std::string default_lpips_dir();
+// The LPIPS weights: explicit_dir (must load) or default_lpips_dir(); null when there are none
+// (*note then says why LPIPS is not computed).
+Expected<std::unique_ptr<metrics::LpipsAlex>> load_lpips(const std::string& explicit_dir, int threads,
+                                                         std::string* note);
+
+std::string absolute_path(const std::string& path);
+uint64_t file_size_or_zero(const std::string& path);
+
+}  // namespace gs::jobs

@@ -1,0 +1,125 @@
+// SPDX-License-Identifier: MIT
+// The training job: everything `hbgs train` does, as one library call. It checks the inputs before
+// touching the run folder, optionally perturbs the poses (seeded noise protocol), re-estimates them
+// by structure from motion (COLMAP) and aligns them to the SfM points, trains the hybrid anchor
+// model (jointly with the poses when asked), evaluates it, and keeps the run folder resumable:
+//
+//   run.json                     the dataset and every option (eval, render and resume read it)
+//   checkpoint.bin progress.json the complete training state and the figures up to it
+//   psnr_vs_time.csv/.svg        test PSNR against training seconds
+//   model.hbgs model_<it>.hbgs   the final model and the ones at save_at
+//   results.json per_view.json   the 3DGS schema, one method per fully evaluated iteration
+//   test/ours_<it>/renders/      test renders; refined_poses/ sfm_init/ with pose optimisation
+//
+// TrainRunOptions holds every default once: the CLI binds its flags to a default-constructed one,
+// and bench_train and the examples start from the same struct, so all run one configuration.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gs/io/colmap.h"
+#include "gs/model/evaluate.h"
+#include "gs/model/trainer.h"
+#include "gs/pose.h"
+#include "gs/status.h"
+
+namespace gs::platform { class ThreadPool; }
+
+namespace gs::jobs {
+
+struct TrainRunOptions {
+  std::string dataset;  // COLMAP dataset folder with SfM points (images/, sparse/0/)
+  std::string out;      // run folder (train_run only)
+  int iterations = 30000;
+  std::string image_features = "paper";  // "paper" or "none" (plain Scaffold-GS)
+  size_t max_anchors = 50000, max_gaussians = 500000;
+  float voxel_size = 0.0f;  // anchor voxel size in world units (0: automatic)
+  uint64_t seed = 0;        // MLP initialisation and view order
+  int threads = 0;          // worker threads (0: all CPUs)
+  int max_width = 0;        // downscale views to at most this width (0: as stored)
+  int checkpoint_every = 1000, eval_every = 500;  // 0: only at the end / never
+  std::string save_at = "1000,7000,30000";       // iterations saving model_<it>.hbgs with a full evaluation
+  std::string lpips_weights;                     // "" : default_lpips_dir()
+  // Poses: seeded noise on the input poses (gs::pose::parse_pose_noise) on "train", "test" or
+  // "all" views; joint optimisation; before it, SfM re-initialisation (pose_init "sfm", COLMAP on
+  // sfm_images: "auto", "train" or a folder) and the alignment to the SfM points (point_align).
+  std::string pose_noise = "none", pose_noise_on = "train";
+  bool optimize_poses = false;
+  bool point_align = true;
+  int register_passes = 0;         // registration passes of every training pose over the first half
+  std::string pose_init = "none";  // "none" or "sfm"
+  std::string colmap = "colmap";   // the COLMAP program for pose_init "sfm"
+  std::string sfm_images = "auto";
+  int coarse_levels = -1;    // coarse-to-fine halvings (-1: 2 when optimising poses without SfM init, else 0)
+  int feature_refresh = -1;  // image features recomputed every N iterations (-1: 250 when optimising poses, else 0)
+  double pose_lr = 5e-5;     // initial pose learning rate (rad; translation x scene extent)
+  bool resume = false, force = false;
+  std::string isa;  // kernel table by name (gs/simd/kernel_table.h); "" : the best for this CPU
+  // With resume: the options set explicitly (long flag names such as "iterations"); the others
+  // come from the run's run.json, and model options that differ from it are refused.
+  std::vector<std::string> given;
+};
+
+// The trainer's options and the model's configuration these options resolve to (every "auto"
+// value decided here, in one place).
+struct ResolvedTraining {
+  model::ModelConfig model;
+  model::TrainOptions train;
+};
+Expected<ResolvedTraining> resolve_training(const TrainRunOptions& options);
+
+// What the job reports while it runs. kNote, kStage and kDetail (a line of a sub-step such as
+// COLMAP) carry a line of text; kIteration carries the
+// iteration's statistics; kPoseErrors the training-pose errors every eval_every iterations.
+struct TrainEvent {
+  enum Kind { kNote, kStage, kDetail, kIteration, kPoseErrors } kind = kNote;
+  std::string message;
+  int iteration = 0, iterations = 0;
+  const model::IterationStats* stats = nullptr;  // kIteration
+  pose::PoseErrors pose_errors;                  // kPoseErrors (Sim(3)-aligned, against the true poses)
+};
+using TrainProgressFn = std::function<void(const TrainEvent&)>;
+
+// A prepared training: the dataset loaded (with pose noise), the poses initialised, the model and
+// trainer created; nothing written except SfM's work folder (<work_dir>/sfm_init with pose_init sfm).
+// bench_train steps one of these; train_run adds the run folder, evaluation and checkpoints.
+class TrainSession {
+ public:
+  static Expected<std::unique_ptr<TrainSession>> create(const TrainRunOptions& options, const TrainProgressFn& progress,
+                                                        const std::string& work_dir = "");
+  ~TrainSession();
+
+  model::Trainer& trainer();
+  platform::ThreadPool& pool();
+  const std::vector<const io::DatasetView*>& train_views() const;
+  const std::vector<const io::DatasetView*>& test_views() const;
+  // Sim(3)-aligned errors of the current training poses against the true (pre-noise) ones.
+  pose::PoseErrors train_pose_errors(bool align = true) const;
+
+ private:
+  TrainSession();
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  friend struct TrainRunAccess;
+};
+
+struct TrainRunSummary {
+  std::string run_dir, model_path, image_features, isa;
+  int iterations = 0, resumed_from = -1, threads = 0;
+  bool have_test_views = false;
+  model::EvalResult final_eval;  // the test views at the last iteration
+  double train_seconds = 0, median_iteration_ms = 0, mean_gaussians = 0;
+  size_t anchors = 0, train_views = 0, test_views = 0;
+  uint64_t model_bytes = 0, model_file_bytes = 0;
+  pose::PoseErrors train_pose_input, train_pose_final;  // Sim(3)-aligned, against the true poses
+};
+
+// Trains into options.out. Errors leave no run folder behind when they are found before training
+// starts; afterwards the last checkpoint stays resumable (options.resume).
+Status train_run(const TrainRunOptions& options, const TrainProgressFn& progress, TrainRunSummary* summary);
+
+}  // namespace gs::jobs

@@ -1,0 +1,68 @@
+// SPDX-License-Identifier: MIT
+// The evaluation job (gs/jobs/evaluate.h).
+#include "gs/jobs/evaluate.h"
+
+#include <filesystem>
+#include <memory>
+
+#include <nlohmann/json.hpp>
+
+#include "gs/model/hybrid_model.h"
+#include "gs/platform/clock.h"
+#include "gs/platform/file.h"
+#include "gs/platform/thread_pool.h"
+#include "json_util.h"
+
+namespace gs::jobs {
+
+namespace fs = std::filesystem;
+
+Status evaluate_run(const EvaluateRunOptions& a, EvaluateRunSummary* summary) {
+  if (!platform::file_exists(a.input)) return invalid_argument(a.input + " not found");
+  if (!is_model_input(a.input))
+    return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs) nor a .hbgs model file");
+  if (a.split != "test" && a.split != "train" && a.split != "all")
+    return invalid_argument("--split: '" + a.split + "' is not one of test, train, all");
+  Expected<ModelSource> src = resolve_model_source(a.input, a.dataset, a.max_width);
+  if (!src.ok()) return src.status();
+  Expected<model::HybridModel> model = model::load_model(src->model_path);
+  if (!model.ok()) return model.status();
+  Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(src->dataset, src->max_width, a.split);
+  if (!data.ok()) return data.status();
+  EvaluateRunSummary s;
+  Expected<std::unique_ptr<metrics::LpipsAlex>> lpips = load_lpips(a.lpips_weights, a.threads, &s.note);
+  if (!lpips.ok()) return lpips.status();
+
+  s.source = *src;
+  s.out_dir = a.out.empty() ? (fs::path(src->run_dir) / "eval").string() : a.out;
+  platform::ThreadPool pool(a.threads);
+  model::EvalOptions eo;
+  eo.lpips = lpips->get();
+  if (a.renders) eo.render_dir = s.render_dir = (fs::path(s.out_dir) / a.split / a.method / "renders").string();
+  const double t0 = platform::now_seconds();
+  Expected<model::EvalResult> r = model::evaluate_views(*model, (*data)->views, eo, &pool);
+  if (!r.ok()) return r.status();
+  s.seconds = platform::now_seconds() - t0;
+  for (const model::ViewMetrics& v : r->views) s.mean_gaussians += double(v.gaussians);
+  s.mean_gaussians /= double(r->views.size());
+  s.anchors = model->anchor_count;
+  nlohmann::json extra = {{"model", absolute_path(src->model_path)},
+                          {"dataset", absolute_path(src->dataset)},
+                          {"split", a.split},
+                          {"views", r->views.size()},
+                          {"model_bytes", model->file_bytes()},
+                          {"model_file_bytes", file_size_or_zero(src->model_path)},
+                          {"anchors", model->anchor_count},
+                          {"mean_gaussians_per_view", s.mean_gaussians},
+                          {"render_ms_median", r->render_ms_median},
+                          {"image_features", model::image_feature_mode_name(model->config.image_features)}};
+  if (eo.lpips) extra["lpips_backbone"] = metrics::LpipsAlex::kLabel;
+  std::string note;
+  GS_RETURN_IF_ERROR(write_eval_files(s.out_dir, a.method, *r, extra, &note));
+  s.note += note;
+  s.result = std::move(r).value();
+  if (summary) *summary = std::move(s);
+  return Status::Ok();
+}
+
+}  // namespace gs::jobs

@@ -1,0 +1,141 @@
+// SPDX-License-Identifier: MIT
+// Run folders shared by the jobs: locating the model and its dataset, the LPIPS weights, and
+// merging evaluation results into the 3DGS results.json / per_view.json.
+#include "gs/jobs/run_folder.h"
+
+#include <cstdlib>
+#include <filesystem>
+#include <system_error>
+
+#include <nlohmann/json.hpp>
+
+#include "gs/platform/file.h"
+#include "json_util.h"
+
+namespace gs::jobs {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Reads a JSON file; a missing file is an empty object when allow_missing.
+Expected<nlohmann::ordered_json> read_json(const std::string& path, bool allow_missing) {
+  if (allow_missing && !platform::file_exists(path)) return nlohmann::ordered_json::object();
+  Expected<std::string> text = platform::read_text_file(path);
+  if (!text.ok()) return text.status();
+  nlohmann::ordered_json j = nlohmann::ordered_json::parse(*text, nullptr, false);
+  if (j.is_discarded() || !j.is_object()) return parse_error(path + ": not a JSON object");
+  return j;
+}
+
+// Merges the single method object in `fresh` into the file at path (written atomically).
+Status merge_json_file(const std::string& path, const std::string& fresh, std::string* note) {
+  Expected<nlohmann::ordered_json> old = read_json(path, true);
+  nlohmann::ordered_json merged = old.ok() ? *old : nlohmann::ordered_json::object();
+  if (!old.ok() && note) *note += "replacing unreadable " + path + " (" + old.status().to_string() + ")\n";
+  const nlohmann::ordered_json update = nlohmann::ordered_json::parse(fresh);
+  for (auto it = update.begin(); it != update.end(); ++it) merged[it.key()] = it.value();
+  return platform::write_file_atomic(path, merged.dump(2) + "\n");
+}
+
+}  // namespace
+
+std::string absolute_path(const std::string& path) {
+  std::error_code ec;
+  const fs::path p = fs::absolute(path, ec);
+  return ec ? path : p.lexically_normal().string();
+}
+
+uint64_t file_size_or_zero(const std::string& path) {
+  std::error_code ec;
+  const uintmax_t n = fs::file_size(path, ec);
+  return ec ? 0 : uint64_t(n);
+}
+
+bool is_model_input(const std::string& path) {
+  std::error_code ec;
+  const fs::path p(path);
+  if (fs::is_regular_file(p, ec)) return p.extension() == ".hbgs";
+  return fs::is_directory(p, ec) && (fs::exists(p / kRunJson, ec) || fs::exists(p / kModelFile, ec));
+}
+
+Expected<ModelSource> resolve_model_source(const std::string& path, const std::string& dataset_override,
+                                               int max_width_override) {
+  std::error_code ec;
+  ModelSource s;
+  const fs::path p(path);
+  if (fs::is_directory(p, ec)) {
+    s.run_dir = path;
+    s.model_path = (p / kModelFile).string();
+    if (!platform::file_exists(s.model_path))
+      return invalid_argument(path + " holds no " + kModelFile + " (the run has not finished; its " +
+                                  kCheckpointFile + " can be continued with hbgs train --resume)");
+  } else {
+    s.model_path = path;
+    s.run_dir = p.has_parent_path() ? p.parent_path().string() : std::string(".");
+  }
+  const std::string run_json = (fs::path(s.run_dir) / kRunJson).string();
+  nlohmann::ordered_json run = nlohmann::ordered_json::object();
+  if (platform::file_exists(run_json)) {
+    Expected<nlohmann::ordered_json> j = read_json(run_json, false);
+    if (!j.ok()) return j.status();
+    run = std::move(j).value();
+  }
+  s.dataset = !dataset_override.empty() ? dataset_override : run.value("dataset", std::string());
+  if (s.dataset.empty())
+    return invalid_argument("no dataset for " + path + ": no " + kRunJson + " next to it names one; pass --dataset DIR");
+  s.max_width = max_width_override >= 0 ? max_width_override : run.value("max_width", 0);
+  return s;
+}
+
+Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& root, int max_width,
+                                                                 const std::string& split) {
+  if (!platform::is_directory(root)) return invalid_argument("dataset folder " + root + " not found");
+  io::DatasetOptions opt;
+  opt.max_width = max_width;
+  Expected<io::Dataset> ds = io::load_dataset(root, opt);
+  if (!ds.ok()) return ds.status();
+  auto out = std::make_unique<LoadedDataset>();
+  out->dataset = std::move(ds).value();
+  for (const io::DatasetView& v : out->dataset.views)
+    if (split == "all" || (split == "test") == v.is_test) out->views.push_back(&v);
+  if (out->views.empty()) return invalid_argument(root + ": no views in split '" + split + "'");
+  return out;
+}
+
+std::string default_lpips_dir() {
+  std::error_code ec;
+  auto holds = [&](const fs::path& dir) { return fs::exists(dir / "weights.bin", ec); };
+  if (const char* env = std::getenv("HBGS_LPIPS_WEIGHTS"); env && *env) return holds(env) ? std::string(env) : std::string();
+  std::vector<fs::path> bases = {fs::current_path(ec)};
+  for (fs::path p = fs::path(platform::executable_path()).parent_path(); !p.empty() && p != p.root_path(); p = p.parent_path())
+    bases.push_back(p);
+  for (const fs::path& base : bases) {
+    const fs::path dir = base.parent_path() / "shared" / "data" / "lpips_alex";
+    if (!base.empty() && holds(dir)) return dir.lexically_normal().string();
+  }
+  return std::string();
+}
+
+Expected<std::unique_ptr<metrics::LpipsAlex>> load_lpips(const std::string& explicit_dir, int threads, std::string* note) {
+  const std::string dir = explicit_dir.empty() ? default_lpips_dir() : explicit_dir;
+  if (dir.empty()) {
+    if (note)
+      *note = "no LPIPS weights (no ../shared/data/lpips_alex and HBGS_LPIPS_WEIGHTS is unset; pass --lpips-weights DIR); "
+              "LPIPS is not computed";
+    return std::unique_ptr<metrics::LpipsAlex>();
+  }
+  Expected<metrics::LpipsAlex> net = metrics::LpipsAlex::load(dir, threads);
+  if (!net.ok()) return Status(net.status().code(), "LPIPS weights: " + net.status().message());
+  return std::make_unique<metrics::LpipsAlex>(std::move(net).value());
+}
+
+Status write_eval_files(const std::string& dir, const std::string& method, const model::EvalResult& r,
+                        const nlohmann::json& extra, std::string* note) {
+  const std::string dump = extra.dump();
+  const std::string members = dump.size() < 2 ? std::string() : dump.substr(1, dump.size() - 2);
+  GS_RETURN_IF_ERROR(platform::make_dirs(dir));
+  GS_RETURN_IF_ERROR(merge_json_file((fs::path(dir) / kResultsJson).string(), model::results_json(r, method, members), note));
+  return merge_json_file((fs::path(dir) / kPerViewJson).string(), model::per_view_json(r, method), note);
+}
+
+}  // namespace gs::jobs
