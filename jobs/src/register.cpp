@@ -1,0 +1,382 @@
+// SPDX-License-Identifier: MIT
+// The registration jobs (gs/jobs/register.h): one image, or a dataset split from perturbed starts.
+#include "gs/jobs/register.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <numeric>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "gs/io/colmap.h"
+#include "gs/io/image.h"
+#include "gs/jobs/pose_truth.h"
+#include "gs/model/evaluate.h"
+#include "gs/model/hybrid_model.h"
+#include "gs/platform/clock.h"
+#include "gs/platform/file.h"
+#include "gs/platform/thread_pool.h"
+#include "gs/stats.h"
+
+namespace gs::jobs {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr const char* kRegisterJson = "register.json";
+
+// COLMAP order qw qx qy qz tx ty tz.
+std::vector<double> colmap_pose(const Pose& p) {
+  double q[4], t[3];
+  io::pose_to_colmap(p, q, t);
+  return {q[0], q[1], q[2], q[3], t[0], t[1], t[2]};
+}
+
+// Camera-centre distance of two poses, world units.
+double centre_distance(const Pose& a, const Pose& b) {
+  double ca[3], cb[3];
+  pose::centre(a, ca);
+  pose::centre(b, cb);
+  return std::sqrt((ca[0] - cb[0]) * (ca[0] - cb[0]) + (ca[1] - cb[1]) * (ca[1] - cb[1]) + (ca[2] - cb[2]) * (ca[2] - cb[2]));
+}
+
+// "fx fy cx cy" (spaces and/or commas): four finite numbers, focal lengths positive.
+Status parse_camera(const std::string& text, PinholeIntrinsics* K) {
+  std::string s = text;
+  std::replace(s.begin(), s.end(), ',', ' ');
+  std::istringstream in(s);
+  std::vector<double> v;
+  std::string tok;
+  while (in >> tok) {
+    size_t used = 0;
+    double x = 0;
+    try {
+      x = std::stod(tok, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != tok.size() || !std::isfinite(x))
+      return invalid_argument("--camera: '" + tok + "' is not a finite number (expected \"fx fy cx cy\")");
+    v.push_back(x);
+  }
+  if (v.size() != 4)
+    return invalid_argument("--camera: expected 4 numbers \"fx fy cx cy\", got " + std::to_string(v.size()));
+  if (!(v[0] > 0) || !(v[1] > 0)) return invalid_argument("--camera: fx and fy must be positive");
+  K->fx = float(v[0]), K->fy = float(v[1]), K->cx = float(v[2]), K->cy = float(v[3]);
+  return Status::Ok();
+}
+
+// The dataset's camera for an image of width x height: the one COLMAP camera all images use
+// (identical parameters), scaled when the image is a uniformly scaled version of the dataset's
+// images (the rounding of the dataset loader's --max-width allowed). Otherwise an error asking
+// for --camera.
+Status dataset_camera(const std::string& dataset, int width, int height, PinholeIntrinsics* K,
+                          std::string* note) {
+  const std::string sparse = (fs::path(dataset) / "sparse" / "0").string();
+  Expected<io::ColmapModel> m = io::read_colmap_model(sparse);
+  if (!m.ok()) return invalid_argument("cannot read the dataset's camera (" + m.status().to_string() + "); pass --camera");
+  const io::ColmapCamera* cam = nullptr;
+  for (const io::ColmapImage& im : m->images) {
+    const auto it = std::find_if(m->cameras.begin(), m->cameras.end(),
+                                 [&](const io::ColmapCamera& c) { return c.id == im.camera_id; });
+    if (it == m->cameras.end()) continue;
+    if (!cam) {
+      cam = &*it;
+    } else if (it->model != cam->model || it->width != cam->width || it->height != cam->height ||
+               it->params != cam->params) {
+      return invalid_argument(sparse + ": the views do not share one camera (cameras " + std::to_string(cam->id) +
+                                  " and " + std::to_string(it->id) + " differ); pass --camera \"fx fy cx cy\"");
+    }
+  }
+  if (!cam) return invalid_argument(sparse + ": no camera; pass --camera \"fx fy cx cy\"");
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+  const std::vector<double>& p = cam->params;
+  if ((cam->model == "PINHOLE" || cam->model == "OPENCV" || cam->model == "FULL_OPENCV") && p.size() >= 4) {
+    fx = p[0], fy = p[1], cx = p[2], cy = p[3];
+  } else if ((cam->model == "SIMPLE_PINHOLE" || cam->model == "SIMPLE_RADIAL" || cam->model == "RADIAL") && p.size() >= 3) {
+    fx = fy = p[0], cx = p[1], cy = p[2];
+  } else {
+    return invalid_argument(sparse + ": camera model " + cam->model + " is not supported here; pass --camera");
+  }
+  if (cam->model != "PINHOLE" && cam->model != "SIMPLE_PINHOLE")
+    *note = "the dataset's camera is " + cam->model + " (with distortion); the image is used as a pinhole image";
+  double sx = 1, sy = 1;
+  if (width != cam->width || height != cam->height) {
+    sx = double(width) / cam->width, sy = double(height) / cam->height;
+    const long h_loader = std::max(1L, std::lround(double(cam->height) * width / cam->width));
+    if (h_loader != height && std::fabs(sx / sy - 1) > 1e-3)
+      return invalid_argument("the image is " + std::to_string(width) + "x" + std::to_string(height) +
+                                  " but the dataset's camera is " + std::to_string(cam->width) + "x" +
+                                  std::to_string(cam->height) + " (not a uniform scale of it); pass --camera \"fx fy cx cy\"");
+  }
+  K->fx = float(fx * sx), K->cx = float(cx * sx);
+  K->fy = float(fy * sy), K->cy = float(cy * sy);
+  return Status::Ok();
+}
+
+double mean_of(const std::vector<double>& v) {
+  return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / double(v.size());
+}
+
+}  // namespace
+
+Expected<model::RegisterOptions> register_options(const RegisterRunOptions& a) {
+  model::RegisterOptions o;
+  if (a.solver == "adam") o.solver = model::RegisterOptions::kAdam;
+  else if (a.solver == "lm") o.solver = model::RegisterOptions::kGaussNewton;
+  else if (a.solver == "keyframe") o.solver = model::RegisterOptions::kKeyframe;
+  else return invalid_argument("--solver: '" + a.solver + "' is not one of keyframe, lm, adam");
+  if (a.downscale < 1) return invalid_argument("--downscale must be at least 1");
+  if (!(a.time_budget_ms >= 0)) return invalid_argument("--time-budget-ms must be 0 or positive");
+  o.finest_downscale = a.downscale;
+  o.time_budget_ms = a.time_budget_ms;
+  return o;
+}
+
+Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary) {
+  RegisterImageSummary s;
+  Expected<model::RegisterOptions> ro = register_options(a);
+  if (!ro.ok()) return ro.status();
+  if (a.image.empty()) return invalid_argument("no image to register");
+  GS_RETURN_IF_ERROR(pose::parse_pose(a.init, "--init", &s.init));
+  PinholeIntrinsics& K = s.intrinsics;
+  if (!a.camera.empty()) GS_RETURN_IF_ERROR(parse_camera(a.camera, &K));
+  if (!platform::file_exists(a.image)) return invalid_argument("image " + a.image + " not found");
+
+  // The model (and, without a camera, the dataset whose camera took the image).
+  Expected<ModelSource> resolved = resolve_model_source(a.input, a.dataset, -1);
+  if (resolved.ok()) {
+    s.source = *resolved;
+  } else if (!a.camera.empty()) {
+    s.source.model_path = platform::is_directory(a.input) ? (fs::path(a.input) / kModelFile).string() : a.input;
+  } else {
+    return Status(resolved.status().code(), resolved.status().message() + " (or pass --camera \"fx fy cx cy\")");
+  }
+  Expected<model::HybridModel> model = model::load_model(s.source.model_path);
+  if (!model.ok()) return model.status();
+  Expected<io::Image8> img = io::read_image(a.image, 3);
+  if (!img.ok()) return img.status();
+  K.width = img->width;
+  K.height = img->height;
+  if (a.camera.empty())
+    if (Status st = dataset_camera(s.source.dataset, img->width, img->height, &K, &s.note); !st.ok())
+      return Status(st.code(), a.image + ": " + st.message());
+
+  platform::ThreadPool pool(a.threads);
+  s.threads = pool.num_threads();
+  Expected<std::unique_ptr<model::Registrar>> reg = model::Registrar::create(*model, img->width, img->height, *ro, &pool);
+  if (!reg.ok()) return reg.status();
+  model::RegisterResult& r = s.result;
+  if (Status st = (*reg)->register_view(img->pixels.data(), K, s.init, &r); !st.ok())
+    return Status(st.code(), a.image + ": " + st.message());
+
+  s.moved_rotation_deg = pose::rotation_error_deg(r.pose, s.init);
+  s.moved_translation = centre_distance(r.pose, s.init);
+  nlohmann::ordered_json j = {{"model", absolute_path(s.source.model_path)},
+                              {"image", absolute_path(a.image)},
+                              {"intrinsics", {{"fx", K.fx}, {"fy", K.fy}, {"cx", K.cx}, {"cy", K.cy}, {"width", K.width}, {"height", K.height}}},
+                              {"solver", a.solver},
+                              {"downscale", a.downscale},
+                              {"threads", s.threads},
+                              {"pose_order", "qw qx qy qz tx ty tz (world-to-camera, COLMAP)"},
+                              {"init", colmap_pose(s.init)},
+                              {"pose", colmap_pose(r.pose)},
+                              {"verdict", model::verdict_name(r.verdict)},
+                              {"converged", r.converged()},
+                              {"initial_rmse", r.initial_rmse},
+                              {"final_rmse", r.final_rmse},
+                              {"coverage", r.coverage},
+                              {"explained", r.explained},
+                              {"moved_rotation_deg", s.moved_rotation_deg},
+                              {"moved_translation", s.moved_translation},
+                              {"iterations", r.iterations},
+                              {"levels", r.levels},
+                              {"ms", r.milliseconds}};
+  if (!a.json.empty()) GS_RETURN_IF_ERROR(platform::write_file_atomic(a.json, j.dump(2) + "\n"));
+  if (summary) *summary = std::move(s);
+  return Status::Ok();
+}
+
+Status register_views(const RegisterRunOptions& a, const std::function<void(const RegisteredView&, size_t, size_t)>& progress,
+                      RegisterViewsSummary* summary) {
+  Expected<model::RegisterOptions> ro = register_options(a);
+  if (!ro.ok()) return ro.status();
+  if (a.views != "test" && a.views != "train" && a.views != "all")
+    return invalid_argument("--views: '" + a.views + "' is not one of test, train, all");
+  if (!platform::file_exists(a.input)) return invalid_argument(a.input + " not found");
+  if (!is_model_input(a.input))
+    return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs) nor a .hbgs model file");
+  pose::PoseNoise noise;
+  if (Status st = pose::parse_pose_noise(a.init_noise, &noise); !st.ok())
+    return invalid_argument("--init-noise: " + st.message());
+  Expected<ModelSource> src = resolve_model_source(a.input, a.dataset, -1);
+  if (!src.ok()) return src.status();
+  Expected<model::HybridModel> model = model::load_model(src->model_path);
+  if (!model.ok()) return model.status();
+  Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(src->dataset, src->max_width, a.views);
+  if (!data.ok()) return data.status();
+  io::Dataset& ds = (*data)->dataset;
+  // True poses and the scene frame of the training cameras; the start poses are the perturbed ones.
+  PoseTruth truth;
+  if (Status st = apply_pose_noise(&ds, a.init_noise, a.views, &truth); !st.ok())
+    return invalid_argument("--init-noise: " + st.message());
+  const std::string out = a.out.empty() ? (fs::path(src->run_dir) / "register").string() : a.out;
+  if (platform::file_exists(out) && !platform::is_directory(out))
+    return invalid_argument("output " + out + " exists and is not a directory");
+
+  std::vector<size_t> index;  // dataset indices of the split, in name order (the dataset is sorted)
+  int max_w = 0, max_h = 0;
+  for (size_t i = 0; i < ds.views.size(); ++i) {
+    const io::DatasetView& v = ds.views[i];
+    if (!(a.views == "all" || (a.views == "test") == v.is_test)) continue;
+    index.push_back(i);
+    max_w = std::max(max_w, v.camera.intr.width);
+    max_h = std::max(max_h, v.camera.intr.height);
+  }
+
+  RegisterViewsSummary s;
+  // One registrar for every view: planned once, then allocation-free.
+  platform::ThreadPool pool(a.threads);
+  Expected<std::unique_ptr<model::Registrar>> reg =
+      model::Registrar::create(*model, max_w, max_h, *ro, &pool);
+  if (!reg.ok()) return reg.status();
+
+  const double t0 = platform::now_seconds();
+  const double radius = truth.radius;
+  std::vector<RegisteredView>& rows = s.views;
+  std::vector<Pose> estimated;
+  std::vector<std::string> names;
+  for (size_t k = 0; k < index.size(); ++k) {
+    const io::DatasetView& v = ds.views[index[k]];
+    const Pose& gt = truth.poses[index[k]];
+    RegisteredView row;
+    row.name = v.name;
+    row.initial_rotation_deg = pose::rotation_error_deg(v.camera.pose, gt);
+    row.initial_translation = centre_distance(v.camera.pose, gt);
+    if (Status st = (*reg)->register_view(v.image.pixels.data(), v.camera.intr, v.camera.pose, &row.result); !st.ok())
+      return Status(st.code(), "view " + v.name + ": " + st.message());
+    row.rotation_deg = pose::rotation_error_deg(row.result.pose, gt);
+    row.translation = centre_distance(row.result.pose, gt);
+    row.success = row.rotation_deg < 1.0 && row.translation < 0.01 * radius;
+    row.initial_translation_fraction = row.initial_translation / radius;
+    row.translation_fraction = row.translation / radius;
+    estimated.push_back(row.result.pose);
+    names.push_back(v.name);
+    rows.push_back(std::move(row));
+    if (progress) progress(rows.back(), k + 1, index.size());
+  }
+
+  // Image metrics of the split at the start poses and at the registered poses (the paper registers
+  // test views before measuring; both are reported, named as what they are).
+  std::vector<io::DatasetView> at_start, at_registered;
+  for (size_t k = 0; k < index.size(); ++k) {
+    at_start.push_back(ds.views[index[k]]);
+    at_registered.push_back(ds.views[index[k]]);
+    at_registered.back().camera.pose = estimated[k];
+  }
+  auto metrics = [&](const std::vector<io::DatasetView>& views) -> Expected<model::EvalResult> {
+    std::vector<const io::DatasetView*> ptrs;
+    for (const io::DatasetView& v : views) ptrs.push_back(&v);
+    return model::evaluate_views(*model, ptrs, model::EvalOptions{}, &pool);
+  };
+  Expected<model::EvalResult> m_start = metrics(at_start), m_reg = metrics(at_registered);
+  if (!m_start.ok()) return m_start.status();
+  if (!m_reg.ok()) return m_reg.status();
+
+  std::vector<double> rot, trans, init_rot, init_trans, ms;
+  size_t success = 0, converged = 0;
+  nlohmann::ordered_json jv = nlohmann::ordered_json::array();
+  for (const RegisteredView& row : rows) {
+    rot.push_back(row.rotation_deg);
+    trans.push_back(row.translation);
+    init_rot.push_back(row.initial_rotation_deg);
+    init_trans.push_back(row.initial_translation);
+    ms.push_back(row.result.milliseconds);
+    success += row.success;
+    converged += row.result.converged();
+    jv.push_back({{"name", row.name},
+                  {"initial_rotation_deg", row.initial_rotation_deg},
+                  {"initial_translation", row.initial_translation},
+                  {"initial_translation_fraction", row.initial_translation / radius},
+                  {"rotation_deg", row.rotation_deg},
+                  {"translation", row.translation},
+                  {"translation_fraction", row.translation / radius},
+                  {"success", row.success},
+                  {"verdict", model::verdict_name(row.result.verdict)},
+                  {"initial_rmse", row.result.initial_rmse},
+                  {"final_rmse", row.result.final_rmse},
+                  {"explained", row.result.explained},
+                  {"coverage", row.result.coverage},
+                  {"iterations", row.result.iterations},
+                  {"levels", row.result.levels},
+                  {"ms", row.result.milliseconds},
+                  {"pose", colmap_pose(row.result.pose)}});
+  }
+  const double n = double(rows.size());
+  nlohmann::ordered_json jsum = {{"views", rows.size()},
+                            {"median_initial_rotation_deg", median(init_rot)},
+                            {"median_initial_translation", median(init_trans)},
+                            {"median_rotation_deg", median(rot)},
+                            {"mean_rotation_deg", mean_of(rot)},
+                            {"median_translation", median(trans)},
+                            {"median_translation_fraction", median(trans) / radius},
+                            {"success_rate", double(success) / n},
+                            {"converged_rate", double(converged) / n},
+                            {"psnr_at_start_poses", m_start->psnr},
+                            {"ssim_at_start_poses", m_start->ssim},
+                            {"psnr_registered", m_reg->psnr},
+                            {"ssim_registered", m_reg->ssim},
+                            {"median_ms", median(ms)},
+                            {"mean_ms", mean_of(ms)},
+                            {"total_seconds", platform::now_seconds() - t0}};
+  nlohmann::ordered_json j = {{"model", absolute_path(src->model_path)},
+                      {"dataset", absolute_path(src->dataset)},
+                      {"max_width", src->max_width},
+                      {"split", a.views},
+                      {"init_noise", pose::describe(noise)},
+                      {"solver", a.solver},
+                      {"downscale", a.downscale},
+                      {"time_budget_ms", a.time_budget_ms},
+                      {"threads", pool.num_threads()},
+                      {"anchors", model->anchor_count},
+                      {"scene_radius", radius},
+                      {"scene_radius_definition", "largest distance of a training camera centre from their mean"},
+                      {"translation_definition", "camera-centre distance to the dataset pose, scene units (no alignment)"},
+                      {"success_definition", "rotation error < 1 deg and translation error < 0.01 scene radius"},
+                      {"pose_order", "qw qx qy qz tx ty tz (world-to-camera, COLMAP)"},
+                      {"summary", jsum},
+                      {"views", std::move(jv)}};
+  GS_RETURN_IF_ERROR(platform::make_dirs(out));
+  const std::string json_path = (fs::path(out) / kRegisterJson).string();
+  const std::string text = j.dump(2) + "\n";
+  GS_RETURN_IF_ERROR(platform::write_file_atomic(json_path, text));
+  if (!a.json.empty()) GS_RETURN_IF_ERROR(platform::write_file_atomic(a.json, text));
+  const std::string posed = (fs::path(out) / "registered").string();
+  GS_RETURN_IF_ERROR(write_posed_model(src->dataset, names, estimated, posed));
+
+  s.source = *src;
+  s.noise = pose::describe(noise);
+  s.json_path = json_path;
+  s.posed_dir = posed;
+  s.scene_radius = radius;
+  s.median_initial_rotation_deg = median(init_rot);
+  s.median_initial_translation = median(init_trans);
+  s.median_rotation_deg = median(rot);
+  s.median_translation = median(trans);
+  s.success = success;
+  s.converged = converged;
+  s.median_ms = median(ms);
+  s.mean_ms = mean_of(ms);
+  s.total_seconds = platform::now_seconds() - t0;
+  s.psnr_at_start = m_start->psnr;
+  s.ssim_at_start = m_start->ssim;
+  s.psnr_registered = m_reg->psnr;
+  s.ssim_registered = m_reg->ssim;
+  s.threads = pool.num_threads();
+  if (summary) *summary = std::move(s);
+  return Status::Ok();
+}
+
+}  // namespace gs::jobs
