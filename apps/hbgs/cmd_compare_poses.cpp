@@ -74,7 +74,7 @@ int run_compare(const CompareArgs& a) {
   const gs::pose::PoseErrors err = gs::pose::pose_errors(e.data(), t.data(), t.size(), radius, true);
   std::vector<double> relative;
   for (size_t i = 1; i < t.size(); ++i) relative.push_back(relative_rotation_error_deg(t[i - 1], t[i], e[i - 1], e[i]));
-  const double relative_mean = mean_of(relative), relative_max = relative.empty() ? 0.0 : *std::max_element(relative.begin(), relative.end());
+  const double relative_mean = gs::mean(relative), relative_max = relative.empty() ? 0.0 : *std::max_element(relative.begin(), relative.end());
   std::printf("compare-poses: %zu images matched (%zu in the estimate, %zu in the truth)%s\n", t.size(),
               est->images.size(), truth->images.size(), err.aligned ? ", Sim(3)-aligned" : ", NOT aligned (degenerate)");
   std::printf("  rotation error: mean %.4f, median %.4f, max %.4f degrees\n", err.rotation_mean_deg,

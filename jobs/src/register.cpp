@@ -6,7 +6,6 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
-#include <numeric>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -114,10 +113,6 @@ Status dataset_camera(const std::string& dataset, int width, int height, Pinhole
   K->fx = float(fx * sx), K->cx = float(cx * sx);
   K->fy = float(fy * sy), K->cy = float(cy * sy);
   return Status::Ok();
-}
-
-double mean_of(const std::vector<double>& v) {
-  return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / double(v.size());
 }
 
 }  // namespace
@@ -319,7 +314,7 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
                             {"median_initial_rotation_deg", median(init_rot)},
                             {"median_initial_translation", median(init_trans)},
                             {"median_rotation_deg", median(rot)},
-                            {"mean_rotation_deg", mean_of(rot)},
+                            {"mean_rotation_deg", mean(rot)},
                             {"median_translation", median(trans)},
                             {"median_translation_fraction", median(trans) / radius},
                             {"success_rate", double(success) / n},
@@ -329,7 +324,7 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
                             {"psnr_registered", m_reg->psnr},
                             {"ssim_registered", m_reg->ssim},
                             {"median_ms", median(ms)},
-                            {"mean_ms", mean_of(ms)},
+                            {"mean_ms", mean(ms)},
                             {"total_seconds", platform::now_seconds() - t0}};
   nlohmann::ordered_json j = {{"model", absolute_path(src->model_path)},
                       {"dataset", absolute_path(src->dataset)},
@@ -368,7 +363,7 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   s.success = success;
   s.converged = converged;
   s.median_ms = median(ms);
-  s.mean_ms = mean_of(ms);
+  s.mean_ms = mean(ms);
   s.total_seconds = platform::now_seconds() - t0;
   s.psnr_at_start = m_start->psnr;
   s.ssim_at_start = m_start->ssim;

@@ -7,6 +7,13 @@
 
 namespace gs {
 
+// The arithmetic mean; 0 for no values.
+inline double mean(const std::vector<double>& values) {
+  double sum = 0;
+  for (double v : values) sum += v;
+  return values.empty() ? 0.0 : sum / double(values.size());
+}
+
 // The median (the mean of the middle two for an even count); 0 for no values.
 inline double median(std::vector<double> values) {
   if (values.empty()) return 0.0;

@@ -26,6 +26,7 @@
 #include "gs/jobs/evaluate.h"
 #include "gs/jobs/pose_truth.h"
 #include "gs/jobs/register.h"
+#include "gs/jobs/render.h"
 #include "gs/jobs/run_folder.h"
 #include "gs/jobs/train.h"
 #include "gs/model/evaluate.h"

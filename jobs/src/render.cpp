@@ -1,0 +1,397 @@
+// SPDX-License-Identifier: MIT
+// The rendering job (gs/jobs/render.h): a dataset with PLY or SfM-point Gaussians through
+// gs::Renderer, or a trained model's views through gs::model::evaluate_views.
+#include "gs/jobs/render.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <sstream>
+#include <system_error>
+
+#include <nlohmann/json.hpp>
+
+#include "gs/io/colmap.h"
+#include "gs/io/image.h"
+#include "gs/io/ply.h"
+#include "gs/jobs/run_folder.h"
+#include "gs/model/evaluate.h"
+#include "gs/model/hybrid_model.h"
+#include "gs/platform/clock.h"
+#include "gs/platform/file.h"
+#include "gs/platform/thread_pool.h"
+#include "gs/render.h"
+#include "gs/scene_init.h"
+#include "gs/simd/kernel_table.h"
+#include "gs/stats.h"
+
+namespace gs::jobs {
+namespace {
+
+namespace fs = std::filesystem;
+
+// PSNR of two 8-bit RGB images of the same size, 10 log10(255^2 / MSE); +inf when identical.
+double psnr_8bit(const io::Image8& a, const io::Image8& b) {
+  if (a.width != b.width || a.height != b.height || a.channels != b.channels || a.pixels.size() != b.pixels.size() ||
+      a.pixels.empty())
+    return std::numeric_limits<double>::quiet_NaN();
+  double sse = 0;
+  for (size_t i = 0; i < a.pixels.size(); ++i) {
+    const double d = double(a.pixels[i]) - double(b.pixels[i]);
+    sse += d * d;
+  }
+  const double mse = sse / double(a.pixels.size());
+  if (mse == 0) return std::numeric_limits<double>::infinity();
+  return 10.0 * std::log10(255.0 * 255.0 / mse);
+}
+
+std::string available_isas() {
+  std::string names = "ref";
+  const simd::KernelTable* tables[16];
+  const int n = simd::available_simd_kernel_tables(tables, 16);
+  for (int i = 0; i < n; ++i) names += std::string(", ") + tables[i]->isa;
+  return names;
+}
+
+// Output name of a view, relative to the output folder: its image name (which may contain
+// sub-folders) with the extension replaced by .png.
+fs::path output_name(const std::string& image_name) {
+  fs::path rel(image_name);
+  rel.replace_extension(".png");
+  return rel;
+}
+
+// Files this run created, removed again if the run fails part-way so no partial output remains.
+class OutputGuard {
+ public:
+  explicit OutputGuard(fs::path dir, bool created_dir) : dir_(std::move(dir)), created_dir_(created_dir) {}
+  ~OutputGuard() {
+    if (committed_) return;
+    std::error_code ec;
+    for (const fs::path& p : files_) fs::remove(p, ec);
+    if (created_dir_) fs::remove(dir_, ec);  // only if empty
+  }
+  void add(const fs::path& p) { files_.push_back(p); }
+  void commit() { committed_ = true; }
+
+ private:
+  fs::path dir_;
+  bool created_dir_;
+  bool committed_ = false;
+  std::vector<fs::path> files_;
+};
+
+// Refuses an --out that is a file or the dataset's own images folder (PNGs would replace it).
+std::string output_problem(const std::string& out, const std::string& dataset) {
+  std::error_code ec;
+  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) return "output " + out + " exists and is not a directory";
+  const fs::path images = fs::path(dataset) / "images";
+  if (fs::exists(out, ec) && fs::exists(images, ec) && fs::equivalent(out, images, ec))
+    return "output " + out + " is the dataset's images folder; choose another --out";
+  return "";
+}
+
+Status render_model(const RenderRunOptions& a, const std::function<void(const RenderedView&, size_t, size_t)>& progress,
+                    RenderRunSummary* summary) {
+  const double t0 = platform::now_seconds();
+  if (!a.ply.empty()) return invalid_argument("--ply cannot be combined with a trained model (" + a.input + ")");
+  if (!a.isa.empty()) return invalid_argument("--isa applies to PLY / SfM-point rendering, not to a trained model");
+  if (a.background[0] != 0 || a.background[1] != 0 || a.background[2] != 0)
+    return invalid_argument("--background is not supported for a trained model");
+  Expected<ModelSource> src = resolve_model_source(a.input, a.model_dataset, a.max_width);
+  if (!src.ok()) return src.status();
+  Expected<model::HybridModel> model = model::load_model(src->model_path);
+  if (!model.ok()) return model.status();
+  Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(src->dataset, src->max_width, a.split);
+  if (!data.ok()) return data.status();
+  if (std::string err = output_problem(a.out, src->dataset); !err.empty()) return invalid_argument(err);
+
+  const bool out_existed = platform::is_directory(a.out);
+  platform::ThreadPool pool(a.threads);
+  model::EvalOptions eo;
+  eo.render_dir = a.out;
+  Expected<model::EvalResult> r = model::evaluate_views(*model, (*data)->views, eo, &pool);
+  if (!r.ok()) {
+    std::error_code ec;
+    if (!out_existed) fs::remove_all(a.out, ec);
+    return r.status();
+  }
+
+  RenderRunSummary s;
+  s.from_model = true;
+  nlohmann::json jv = nlohmann::json::array();
+  std::vector<double> times;
+  for (size_t i = 0; i < r->views.size(); ++i) {
+    const model::ViewMetrics& m = r->views[i];
+    const io::DatasetView& v = *(*data)->views[i];
+    RenderedView rv;
+    rv.name = m.name;
+    rv.png = output_name(m.name).generic_string();
+    rv.is_test = v.is_test;
+    rv.width = v.camera.intr.width;
+    rv.height = v.camera.intr.height;
+    rv.ms = m.render_ms;
+    rv.psnr = m.psnr;
+    rv.ssim = m.ssim;
+    rv.gaussians = m.gaussians;
+    times.push_back(m.render_ms);
+    jv.push_back({{"name", rv.name},
+                  {"png", rv.png},
+                  {"split", v.is_test ? "test" : "train"},
+                  {"width", rv.width},
+                  {"height", rv.height},
+                  {"ms", rv.ms},
+                  {"psnr_db", std::isfinite(m.psnr) ? nlohmann::json(m.psnr) : nlohmann::json(nullptr)},
+                  {"ssim", m.ssim},
+                  {"gaussians", m.gaussians}});
+    s.views.push_back(rv);
+    if (progress) progress(s.views.back(), i + 1, r->views.size());
+  }
+  nlohmann::json j;
+  j["model"] = absolute_path(src->model_path);
+  j["dataset"] = absolute_path(src->dataset);
+  j["split"] = a.split;
+  j["max_width"] = src->max_width;
+  j["anchors"] = model->anchor_count;
+  j["threads"] = pool.num_threads();
+  j["psnr_definition"] = "10*log10(255^2/MSE) over 8-bit RGB; null if identical";
+  j["views"] = std::move(jv);
+  j["summary"] = {{"views", r->views.size()},
+                  {"median_ms", median(times)},
+                  {"mean_ms", mean(times)},
+                  {"mean_psnr_db", r->psnr},
+                  {"mean_ssim", r->ssim},
+                  {"total_seconds", platform::now_seconds() - t0}};
+  const fs::path json_path = fs::path(a.out) / "render.json";
+  GS_RETURN_IF_ERROR(platform::write_file_atomic(json_path.string(), j.dump(2) + "\n"));
+  s.dataset = src->dataset;
+  s.source = src->model_path;
+  s.json_path = json_path.string();
+  s.anchors = model->anchor_count;
+  s.threads = pool.num_threads();
+  s.median_ms = median(times);
+  s.mean_ms = mean(times);
+  s.mean_psnr = r->psnr;
+  s.mean_ssim = r->ssim;
+  s.total_seconds = platform::now_seconds() - t0;
+  if (summary) *summary = std::move(s);
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status parse_background(const std::string& text, float rgb[3]) {
+  std::istringstream in(text);
+  std::string part;
+  int n = 0;
+  while (std::getline(in, part, ',')) {
+    if (n == 3) return invalid_argument("--background: expected three comma-separated values r,g,b");
+    size_t used = 0;
+    float v = 0;
+    try {
+      v = std::stof(part, &used);
+    } catch (const std::exception&) {
+      return invalid_argument("--background: '" + part + "' is not a number");
+    }
+    if (used != part.size() || !std::isfinite(v) || v < 0.f || v > 1.f)
+      return invalid_argument("--background: '" + part + "' is not a number in [0, 1]");
+    rgb[n++] = v;
+  }
+  return n == 3 ? Status::Ok() : invalid_argument("--background: expected three comma-separated values r,g,b");
+}
+
+Status render_run(const RenderRunOptions& a, const std::function<void(const RenderedView&, size_t, size_t)>& progress,
+                  RenderRunSummary* summary) {
+  if (a.split != "all" && a.split != "train" && a.split != "test")
+    return invalid_argument("--split: '" + a.split + "' is not one of all, train, test");
+  if (a.out.empty()) return invalid_argument("no output folder given (--out)");
+  if (is_model_input(a.input)) return render_model(a, progress, summary);
+  const double t0 = platform::now_seconds();
+  const int max_width = std::max(0, a.max_width);
+
+  // 1. Everything that can be wrong with the inputs is checked before anything is written.
+  if (!platform::is_directory(a.input)) return invalid_argument("dataset folder " + a.input + " not found");
+  const simd::KernelTable* kernels =
+      a.isa.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(a.isa.c_str());
+  if (!kernels)
+    return invalid_argument("kernel ISA '" + a.isa + "' is not available in this build on this CPU (available: " +
+                            available_isas() + ")");
+  const float* background = a.background;
+  for (int k = 0; k < 3; ++k)
+    if (!(background[k] >= 0.f && background[k] <= 1.f)) return invalid_argument("--background: values must be in [0, 1]");
+  if (std::string err = output_problem(a.out, a.input); !err.empty()) return invalid_argument(err);
+
+  const double load_t0 = platform::now_seconds();
+  Expected<std::unique_ptr<LoadedDataset>> loaded_dataset = load_dataset_split(a.input, max_width, a.split);
+  if (!loaded_dataset.ok()) return loaded_dataset.status();
+  const io::Dataset* dataset = &(*loaded_dataset)->dataset;
+  const std::vector<const io::DatasetView*>& views = (*loaded_dataset)->views;
+
+  GaussianCloud cloud;
+  std::string source;
+  if (!a.ply.empty()) {
+    Expected<GaussianCloud> loaded = io::read_splat_ply(a.ply);
+    if (!loaded.ok()) return loaded.status();
+    cloud = std::move(loaded).value();
+    source = a.ply;
+  } else {
+    const size_t n = dataset->points_xyz.size() / 3;
+    if (n == 0) return invalid_argument(a.input + ": the dataset has no SfM points; pass --ply FILE");
+    cloud = gaussians_from_points(dataset->points_xyz.data(), dataset->points_rgb.data(), n);
+    source = "sfm points";
+  }
+  if (cloud.size() == 0) return invalid_argument(source + ": no Gaussians to render");
+  std::vector<float> opacity_storage;
+  const GaussianParams params = activate(cloud, &opacity_storage);
+  if (Status st = validate_gaussians(params); !st.ok()) return Status(st.code(), source + ": " + st.message());
+
+  int max_w = 0, max_h = 0;
+  for (const io::DatasetView* v : views) {
+    if (Status st = validate_camera(v->camera); !st.ok())
+      return Status(st.code(), a.input + ": view " + v->name + ": " + st.message());
+    max_w = std::max(max_w, v->camera.intr.width);
+    max_h = std::max(max_h, v->camera.intr.height);
+  }
+  const double load_seconds = platform::now_seconds() - load_t0;
+
+  // 2. Plan the renderer once: each Gaussian covers at most every tile of the largest view, so
+  // N * tiles is a hard bound; the usual 16 per Gaussian is far below it for real scenes.
+  platform::ThreadPool pool(a.threads);
+  const size_t n = cloud.size();
+  const size_t tiles = size_t((max_w + simd::kTileSize - 1) / simd::kTileSize) *
+                       size_t((max_h + simd::kTileSize - 1) / simd::kTileSize);
+  const size_t isect_bound = n * tiles;
+  RenderCapacity cap;
+  cap.max_gaussians = n;
+  cap.max_isects = std::min(isect_bound, std::max<size_t>(16 * n, tiles));
+  cap.max_width = max_w;
+  cap.max_height = max_h;
+  cap.max_sh_degree = cloud.sh_degree;
+  Renderer renderer;
+  GS_RETURN_IF_ERROR(renderer.init(cap, &pool, kernels));
+
+  RenderOptions ropt;
+  for (int k = 0; k < 3; ++k) ropt.background[k] = background[k];
+  ropt.validate_inputs = false;  // validated once above; the timings measure rendering only
+  std::vector<float> rgb(size_t(max_w) * size_t(max_h) * 3);
+
+  // 3. Render, write, compare.
+  const fs::path out_dir(a.out);
+  const bool out_existed = platform::is_directory(a.out);
+  GS_RETURN_IF_ERROR(platform::make_dirs(a.out));
+  OutputGuard guard(out_dir, !out_existed);
+
+  std::vector<RenderedView> results;
+  results.reserve(views.size());
+  std::vector<size_t> isects;
+  size_t reinits = 0;
+  for (size_t i = 0; i < views.size(); ++i) {
+    const io::DatasetView& v = *views[i];
+    double ms = 0;
+    for (;;) {
+      const double f0 = platform::now_seconds();
+      Status st = renderer.forward(v.camera, params, ropt, rgb.data());
+      ms = 1e3 * (platform::now_seconds() - f0);
+      if (st.ok()) break;
+      // A view with more Gaussian-tile pairs than planned: grow the plan (rare, so it happens
+      // here instead of over-allocating for every view) and render the view again.
+      const size_t needed = renderer.stats().isects;
+      if (st.code() != StatusCode::kCapacityExceeded || needed <= cap.max_isects || cap.max_isects >= isect_bound)
+        return Status(st.code(), "view " + v.name + ": " + st.message());
+      while (cap.max_isects < needed) cap.max_isects = std::min(isect_bound, 2 * cap.max_isects);
+      if (Status re = renderer.init(cap, &pool, kernels); !re.ok())
+        return Status(re.code(), "view " + v.name + ": " + re.message());
+      ++reinits;
+    }
+    const int w = v.camera.intr.width, h = v.camera.intr.height;
+    const io::Image8 img = io::image_from_float_rgb(rgb.data(), w, h);
+    const fs::path rel = output_name(v.name), png = out_dir / rel;
+    if (png.has_parent_path() && png.parent_path() != out_dir)
+      GS_RETURN_IF_ERROR(platform::make_dirs(png.parent_path().string()));
+    GS_RETURN_IF_ERROR(io::write_png(png.string(), img));
+    guard.add(png);
+
+    RenderedView r;
+    r.name = v.name;
+    r.png = rel.generic_string();
+    r.is_test = v.is_test;
+    r.width = w;
+    r.height = h;
+    r.ms = ms;
+    r.psnr = psnr_8bit(img, v.image);
+    r.gaussians = renderer.stats().visible;
+    isects.push_back(renderer.stats().isects);
+    results.push_back(std::move(r));
+    if (progress) progress(results.back(), i + 1, views.size());
+  }
+
+  // 4. Summary: render.json (atomic) and a few lines on stdout.
+  std::vector<double> times, psnrs;
+  for (const RenderedView& r : results) {
+    times.push_back(r.ms);
+    if (std::isfinite(r.psnr)) psnrs.push_back(r.psnr);
+  }
+  const double median_ms = median(times), mean_ms = mean(times);
+  const double mean_psnr = psnrs.empty() ? std::numeric_limits<double>::quiet_NaN() : mean(psnrs);
+  auto number_or_null = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
+
+  nlohmann::json j;
+  j["dataset"] = a.input;
+  j["gaussians_source"] = a.ply.empty() ? nlohmann::json("sfm_points") : nlohmann::json(a.ply);
+  j["gaussians"] = n;
+  j["sh_degree"] = cloud.sh_degree;
+  j["isa"] = renderer.isa();
+  j["threads"] = pool.num_threads();
+  j["split"] = a.split;
+  j["max_width"] = max_width;
+  j["background"] = {background[0], background[1], background[2]};
+  j["max_isects"] = cap.max_isects;
+  j["capacity_reinits"] = reinits;
+  j["psnr_definition"] = "10*log10(255^2/MSE) over 8-bit RGB; null if identical";
+  nlohmann::json jv = nlohmann::json::array();
+  for (size_t i = 0; i < results.size(); ++i) {
+    const RenderedView& r = results[i];
+    jv.push_back({{"name", r.name},
+                  {"png", r.png},
+                  {"split", r.is_test ? "test" : "train"},
+                  {"width", r.width},
+                  {"height", r.height},
+                  {"ms", r.ms},
+                  {"psnr_db", number_or_null(r.psnr)},
+                  {"visible", r.gaussians},
+                  {"isects", isects[i]}});
+  }
+  j["views"] = std::move(jv);
+  j["summary"] = {{"views", results.size()},
+                  {"median_ms", median_ms},
+                  {"mean_ms", mean_ms},
+                  {"mean_psnr_db", number_or_null(mean_psnr)},
+                  {"load_seconds", load_seconds},
+                  {"total_seconds", platform::now_seconds() - t0}};
+  const fs::path json_path = out_dir / "render.json";
+  GS_RETURN_IF_ERROR(platform::write_file_atomic(json_path.string(), j.dump(2) + "\n"));
+  guard.commit();
+
+  RenderRunSummary s;
+  s.dataset = a.input;
+  s.source = a.ply.empty() ? "sfm points" : a.ply;
+  s.isa = renderer.isa();
+  s.json_path = json_path.string();
+  s.views = std::move(results);
+  s.gaussians = n;
+  s.max_width = max_w;
+  s.max_height = max_h;
+  s.threads = pool.num_threads();
+  s.median_ms = median_ms;
+  s.mean_ms = mean_ms;
+  s.mean_psnr = mean_psnr;
+  s.load_seconds = load_seconds;
+  s.total_seconds = platform::now_seconds() - t0;
+  if (summary) *summary = std::move(s);
+  return Status::Ok();
+}
+
+}  // namespace gs::jobs
