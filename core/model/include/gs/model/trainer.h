@@ -43,8 +43,9 @@ struct TrainOptions {
   int stat_start = 500, update_from = 1500, update_interval = 100, update_until = 15000;
   double densify_grad_threshold = 0.0002, success_threshold = 0.8, min_opacity = 0.005;
   int update_depth = 3, update_init_factor = 16, update_hierarchy_factor = 4;
-  // Image features are recomputed from the current poses every this many iterations (0: never).
-  int image_feature_refresh = 1000;
+  // Image features are recomputed from the current poses every this many iterations (0: never;
+  // the training job, gs/jobs/train.h, sets 250 when it optimises the poses).
+  int image_feature_refresh = 0;
   // Joint pose optimisation (ALGORITHM.md Part A item 7): one pose per training view, updated by
   // Adam on a left se(3) increment after each render of that view, then retracted (R
   // re-orthonormalised). Rates are per Adam step: radians, and translation in units of the scene
