@@ -13,20 +13,18 @@ namespace hbgs::cli {
 namespace {
 
 struct IngestArgs {
-  std::string input;
-  IngestCommonArgs common;
+  std::string input, out;
+  gs::capture::IngestOptions options;
 };
 
 int run_ingest(const IngestArgs& a) {
-  gs::capture::IngestOptions o;
-  if (int rc = ingest_options_from(a.common, "ingest", &o); rc != kExitOk) return rc;
   const std::string input = a.input;
   gs::capture::IngestReport report;
   Stopwatch sw;
-  const gs::Status st = gs::capture::ingest([input] { return gs::capture::open_input(input); }, a.common.out, o,
+  const gs::Status st = gs::capture::ingest([input] { return gs::capture::open_input(input); }, a.out, a.options,
                                             print_progress, &report);
   if (!st.ok()) return fail("ingest", st.to_string());
-  print_ingest_summary(report, a.common.out, sw.seconds());
+  print_ingest_summary(report, a.out, sw.seconds());
   return kExitOk;
 }
 
@@ -37,7 +35,7 @@ Command add_ingest_command(CLI::App& parent) {
   CLI::App* sub = parent.add_subcommand(
       "ingest", "Turn a video file or a folder of images into a dataset: pick sharp, well-spread frames, run COLMAP");
   sub->add_option("input", args->input, "Video file (any format FFmpeg reads) or folder of PNG/JPEG images")->required();
-  add_ingest_options(sub, &args->common, true);
+  add_ingest_options(sub, &args->out, &args->options, true);
   return {sub, [args] { return run_ingest(*args); }};
 }
 

@@ -2,9 +2,15 @@
 // The live capture loop behind `hbgs capture`: acquire, convert, write, release.
 #include "gs/capture/capture_session.h"
 
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <system_error>
 #include <vector>
 
 #include "gs/capture/convert.h"
+#include "gs/capture/devices.h"
+#include "gs/capture/image_folder_source.h"
 #include "gs/capture/ingest.h"
 #include "gs/io/image.h"
 #include "gs/platform/clock.h"
@@ -66,6 +72,43 @@ Status capture_to_folder(FrameSource& src, const std::string& folder, const Capt
   if (!status.ok()) return status;
   if (!stopped.ok()) return stopped;
   if (rep.written == 0) return io_error(std::string(src.name()) + " delivered no frames");
+  return Status::Ok();
+}
+
+Status record_and_ingest(const RecordOptions& o, const std::string& out_dir, const ProgressFn& progress,
+                         CaptureReport* capture_report, IngestReport* ingest_report) {
+  if (out_dir.empty()) return invalid_argument("no output folder given (--out)");
+  if (o.device.empty() == o.camera.empty()) return invalid_argument("give exactly one of --device /dev/videoN or --camera ID");
+  // Refuse a used output folder before touching the camera.
+  GS_RETURN_IF_ERROR(check_output_folder(out_dir, o.ingest.force));
+  Expected<std::unique_ptr<FrameSource>> src = o.device.empty() ? open_libcamera(o.camera) : open_v4l2_device(o.device);
+  if (!src.ok()) return src.status();
+  FrameFormat got;
+  GS_RETURN_IF_ERROR((*src)->configure(o.requested, &got));
+  if (progress) {
+    char line[256];
+    std::snprintf(line, sizeof(line), "capturing %s: %dx%d %s for %.1f s", (*src)->name(), got.width, got.height,
+                  pixel_format_name(got.format), o.capture.seconds);
+    progress(line);
+  }
+  GS_RETURN_IF_ERROR((*src)->start());
+
+  std::string raw = out_dir;
+  while (raw.size() > 1 && raw.back() == '/') raw.pop_back();
+  raw += ".capture";
+  std::error_code ec;
+  std::filesystem::remove_all(raw, ec);
+  CaptureReport cr;
+  if (Status st = capture_to_folder(**src, raw, o.capture, progress, &cr); !st.ok())
+    return Status(st.code(), st.message() + " (frames so far kept in " + raw + ")");
+  if (progress)
+    progress("captured " + std::to_string(cr.written) + " frames (" + std::to_string(cr.dropped) + " dropped) into " + raw);
+  if (capture_report) *capture_report = cr;
+  const Status st = ingest(
+      [raw]() -> Expected<std::unique_ptr<FrameSource>> { return std::unique_ptr<FrameSource>(new ImageFolderSource(raw)); },
+      out_dir, o.ingest, progress, ingest_report);
+  if (!st.ok()) return Status(st.code(), st.message() + " (the recording is kept in " + raw + ")");
+  if (!o.ingest.keep_work) std::filesystem::remove_all(raw, ec);
   return Status::Ok();
 }
 

@@ -10,6 +10,7 @@
 
 #include "gs/capture/colmap_sfm.h"
 #include "gs/capture/frame_source.h"
+#include "gs/capture/ingest.h"
 #include "gs/status.h"
 
 namespace gs::capture {
@@ -32,5 +33,20 @@ struct CaptureReport {
 // source must be configured and started; it is stopped on return.
 Status capture_to_folder(FrameSource& source, const std::string& folder, const CaptureOptions& options,
                          const ProgressFn& progress, CaptureReport* report);
+
+// The whole `hbgs capture` job: opens the camera (a V4L2 device path or a libcamera id, exactly
+// one), asks it for `requested` (zero fields: the camera's choice), records into <out_dir>.capture/
+// for options.seconds, then ingests that folder into out_dir as ingest() does. The recording is
+// kept when ingestion fails (and with ingest.keep_work); the output folder is checked before the
+// camera is touched.
+struct RecordOptions {
+  std::string device;  // V4L2 device, e.g. /dev/video0
+  std::string camera;  // libcamera camera id
+  FrameFormat requested;
+  CaptureOptions capture;
+  IngestOptions ingest;
+};
+Status record_and_ingest(const RecordOptions& options, const std::string& out_dir, const ProgressFn& progress,
+                         CaptureReport* capture_report, IngestReport* ingest_report);
 
 }  // namespace gs::capture
