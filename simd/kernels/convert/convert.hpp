@@ -20,9 +20,13 @@
 #include <cstring>
 #include <xsimd/xsimd.hpp>
 
+#include "gs/simd/isa.h"
+
 #include "gs/simd/convert.h"
 
-namespace gs::simd::kernels {
+namespace gs::simd {
+inline namespace GS_SIMD_ISA_NS {  // compiled per ISA: see gs/simd/isa.h
+namespace kernels {
 
 static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "the word packing below assumes little-endian bytes");
 
@@ -125,4 +129,6 @@ struct ConvertKernels {
   }
 };
 
-}  // namespace gs::simd::kernels
+}  // namespace kernels
+}  // inline namespace GS_SIMD_ISA_NS
+}  // namespace gs::simd

@@ -18,9 +18,13 @@
 #include <cstdint>
 #include <xsimd/xsimd.hpp>
 
+#include "gs/simd/isa.h"
+
 #include "gs/simd/loss.h"
 
-namespace gs::simd::kernels {
+namespace gs::simd {
+inline namespace GS_SIMD_ISA_NS {  // compiled per ISA: see gs/simd/isa.h
+namespace kernels {
 
 template <class Arch>
 struct LossKernels {
@@ -38,7 +42,7 @@ struct LossKernels {
       moments_vertical(c, height, image, target, r, v);
       B acc_ssim(0.0f), acc_l1(0.0f);
       for (size_t i = 0; i < c.n; i += N) {
-        const size_t cnt = std::min(size_t(N), c.n - i);
+        const size_t cnt = scalar::min(size_t(N), c.n - i);
         B m[kMoments];
         for (int q = 0; q < kMoments; ++q) m[q] = blur_horizontal(c, v[q] + i);
         const B s = ssim_elem(m[0], m[1], m[2], m[3], m[4], c.c1, c.c2);
@@ -76,7 +80,7 @@ struct LossKernels {
         float* g1 = ring(next, 1);
         float* g2 = ring(next, 2);
         for (size_t i = 0; i < c.n; i += N) {
-          const size_t cnt = std::min(size_t(N), c.n - i);
+          const size_t cnt = scalar::min(size_t(N), c.n - i);
           B m[kMoments];
           for (int q = 0; q < kMoments; ++q) m[q] = blur_horizontal(c, v[q] + i);
           B g_mx, g_exx, g_exy;
@@ -113,7 +117,7 @@ struct LossKernels {
       }
       B acc_l1(0.0f);
       for (size_t i = 0; i < c.n; i += N) {
-        const size_t cnt = std::min(size_t(N), c.n - i);
+        const size_t cnt = scalar::min(size_t(N), c.n - i);
         const size_t e = size_t(r) * c.n + i;
         const B x = load_n(image + e, cnt), y = load_n(target + e, cnt), d = x - y;
         const B b_mx = blur_horizontal(c, vg[0] + i);
@@ -143,8 +147,8 @@ struct LossKernels {
       // Zero every row's padding once; the kernels only ever store inside [0, n) of a row.
       for (int k = 0; k < kLossScratchRows; ++k) {
         float* base = scratch + size_t(k) * stride;
-        std::fill(base, base + kLossRowPad, 0.0f);
-        std::fill(base + kLossRowPad + n, base + stride, 0.0f);
+        scalar::fill(base, base + kLossRowPad, 0.0f);
+        scalar::fill(base + kLossRowPad + n, base + stride, 0.0f);
       }
     }
     float* row(int k) const { return scratch + size_t(k) * stride + kLossRowPad; }
@@ -175,7 +179,7 @@ struct LossKernels {
   static void moments_vertical(const Ctx& c, int32_t height, const float* x, const float* y, int32_t r,
                                float* const* v) {
     for (size_t i = 0; i < c.n; i += N) {
-      const size_t cnt = std::min(size_t(N), c.n - i);
+      const size_t cnt = scalar::min(size_t(N), c.n - i);
       const B xc = load_n(x + size_t(r) * c.n + i, cnt), yc = load_n(y + size_t(r) * c.n + i, cnt);
       const B wc = c.w[kSsimRadius];
       B acc[kMoments] = {wc * xc, wc * yc, wc * (xc * xc), wc * (yc * yc), wc * (xc * yc)};
@@ -210,4 +214,6 @@ struct LossKernels {
   }
 };
 
-}  // namespace gs::simd::kernels
+}  // namespace kernels
+}  // inline namespace GS_SIMD_ISA_NS
+}  // namespace gs::simd

@@ -36,9 +36,13 @@
 #include <cstdint>
 #include <xsimd/xsimd.hpp>
 
+#include "gs/simd/isa.h"
+
 #include "gs/simd/mlp.h"
 
-namespace gs::simd::kernels {
+namespace gs::simd {
+inline namespace GS_SIMD_ISA_NS {  // compiled per ISA: see gs/simd/isa.h
+namespace kernels {
 
 template <class Arch>
 struct MlpKernels {
@@ -68,7 +72,7 @@ struct MlpKernels {
     const Act2 act{s->act2};
     // Chunks keep a block of hidden rows in L1 between the two layers.
     for (size_t r0 = 0; r0 < size_t(batch); r0 += kMaxChunk) {
-      const size_t rows = std::min(kMaxChunk, size_t(batch) - r0);
+      const size_t rows = scalar::min(kMaxChunk, size_t(batch) - r0);
       float* h = hidden + r0 * H;
       gemm(Gemm{rows, H, I, x + r0 * I, I, 1, W1T, Hp, b1, 0, h, H}, Relu{});
       gemm(Gemm{rows, O, H, h, H, 1, W2T, Op, b2, 0, y + r0 * O, O}, act);
@@ -84,7 +88,7 @@ struct MlpKernels {
     const bool copy_x = Ip != I, copy_h = Hp != H;  // rows read as Bm must be whole vectors
     const size_t fixed = (copy_x ? H * Ip : 0) + (copy_h ? O * Hp : 0) + Hp + Op;
     const size_t per_row = Op + Hp + (copy_h ? Hp : 0) + (copy_x ? Ip : 0);
-    const size_t R = fixed < kScratch ? std::min(kMaxChunk, (kScratch - fixed) / per_row) / kMR * kMR : 0;
+    const size_t R = fixed < kScratch ? scalar::min(kMaxChunk, (kScratch - fixed) / per_row) / kMR * kMR : 0;
     if (R < kMinChunk)
       return bwd_rows(s, batch, x, W1, b1, W2, b2, hidden, y, v_y, v_x, v_W1, v_b1, v_W2, v_b2);
     alignas(64) float buf[kScratch];
@@ -112,15 +116,15 @@ struct MlpKernels {
     float* vh = take(R * Hp);  // [R, Hp] cotangent of the hidden pre-activation
     float* hp = copy_h ? take(R * Hp) : nullptr;
     float* xp = copy_x ? take(R * Ip) : nullptr;
-    std::fill(sum_b1, sum_b1 + Hp + Op, 0.0f);
+    scalar::fill(sum_b1, sum_b1 + Hp + Op, 0.0f);
     const MlpAct a2 = s->act2;
     for (size_t r0 = 0; r0 < size_t(batch); r0 += R) {
-      const size_t rows = std::min(R, size_t(batch) - r0);
+      const size_t rows = scalar::min(R, size_t(batch) - r0);
       for (size_t r = 0; r < rows; ++r) {
         const float* vyr = v_y + (r0 + r) * O;
         const float* yr = y + (r0 + r) * O;
         for (size_t c = 0; c < Op; c += N) {
-          const size_t cnt = std::min(N, O - c);
+          const size_t cnt = scalar::min(N, O - c);
           const B gv = load_n(vyr + c, cnt) * act2_deriv(a2, load_n(yr + c, cnt));  // 0 in the padding
           gv.store_aligned(g + r * Op + c);
           (B::load_aligned(sum_b2 + c) + gv).store_aligned(sum_b2 + c);
@@ -158,7 +162,7 @@ struct MlpKernels {
     const B vb1(b1), vb2(b2), vc1(1.0f - b1), vc2(1.0f - b2), eps(float(p->eps));
     const B step_size(float(k.step_size)), sqrt_bc2(float(k.sqrt_bc2));
     for (size_t i = 0; i < n; i += N) {
-      const size_t cnt = std::min(N, n - i);
+      const size_t cnt = scalar::min(N, n - i);
       const B g = load_n(grad + i, cnt);
       const B mn = vb1 * load_n(m + i, cnt) + vc1 * g;
       const B vn = vb2 * load_n(v + i, cnt) + vc2 * (g * g);
@@ -213,10 +217,10 @@ struct MlpKernels {
   template <class Epi>
   static void gemm(const Gemm& g, const Epi& epi) {
     for (size_t c0 = 0; c0 < g.cols; c0 += kNV * N) {
-      const size_t nv = std::min(kNV, (g.cols - c0 + N - 1) / N);
-      const size_t last = std::min(N, g.cols - c0 - (nv - 1) * N);  // lanes of the tile's last vector
+      const size_t nv = scalar::min(kNV, (g.cols - c0 + N - 1) / N);
+      const size_t last = scalar::min(N, g.cols - c0 - (nv - 1) * N);  // lanes of the tile's last vector
       for (size_t m0 = 0; m0 < g.M; m0 += kMR)
-        tile_dispatch<kMR, kNV>(std::min(kMR, g.M - m0), nv, g, m0, c0, last, epi);
+        tile_dispatch<kMR, kNV>(scalar::min(kMR, g.M - m0), nv, g, m0, c0, last, epi);
     }
   }
 
@@ -257,15 +261,15 @@ struct MlpKernels {
     for (size_t i = 0; i < cols; ++i) {
       float* d = dst + i * ld;
       for (size_t j = 0; j < rows; ++j) d[j] = src[j * cols + i];
-      std::fill(d + rows, d + ld, 0.0f);
+      scalar::fill(d + rows, d + ld, 0.0f);
     }
   }
 
   // dst rows of ld >= cols floats: a copy of the rows x cols src, zero-padded.
   static void copy_pad(const float* src, size_t rows, size_t cols, float* dst, size_t ld) {
     for (size_t r = 0; r < rows; ++r) {
-      std::copy(src + r * cols, src + (r + 1) * cols, dst + r * ld);
-      std::fill(dst + r * ld + cols, dst + (r + 1) * ld, 0.0f);
+      scalar::copy(src + r * cols, src + (r + 1) * cols, dst + r * ld);
+      scalar::fill(dst + r * ld + cols, dst + (r + 1) * ld, 0.0f);
     }
   }
 
@@ -295,9 +299,9 @@ struct MlpKernels {
       const float* xr = x + r * I;
       const float* hr = hidden + r * H;
       float* v_xr = v_x ? v_x + r * I : nullptr;
-      if (v_xr) std::fill(v_xr, v_xr + I, 0.0f);
+      if (v_xr) scalar::fill(v_xr, v_xr + I, 0.0f);
       for (size_t c = 0; c < H; c += N) {
-        const size_t cnt = std::min(N, H - c);
+        const size_t cnt = scalar::min(N, H - c);
         const B h = load_n(hr + c, cnt);
         B v_h(0.0f);
         for (size_t o = 0; o < O; ++o) {
@@ -354,4 +358,6 @@ struct MlpKernels {
   }
 };
 
-}  // namespace gs::simd::kernels
+}  // namespace kernels
+}  // inline namespace GS_SIMD_ISA_NS
+}  // namespace gs::simd

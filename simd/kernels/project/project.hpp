@@ -11,10 +11,14 @@
 #include <cstdint>
 #include <xsimd/xsimd.hpp>
 
+#include "gs/simd/isa.h"
+
 #include "gs/simd/ref.h"
 #include "gs/simd/splat.h"
 
-namespace gs::simd::kernels {
+namespace gs::simd {
+inline namespace GS_SIMD_ISA_NS {  // compiled per ISA: see gs/simd/isa.h
+namespace kernels {
 
 template <class Arch>
 struct ProjectKernels {
@@ -258,4 +262,6 @@ struct ProjectKernels {
   }
 };
 
-}  // namespace gs::simd::kernels
+}  // namespace kernels
+}  // inline namespace GS_SIMD_ISA_NS
+}  // namespace gs::simd

@@ -25,9 +25,13 @@
 #include <cstdint>
 #include <xsimd/xsimd.hpp>
 
+#include "gs/simd/isa.h"
+
 #include "gs/simd/splat.h"
 
-namespace gs::simd::kernels {
+namespace gs::simd {
+inline namespace GS_SIMD_ISA_NS {  // compiled per ISA: see gs/simd/isa.h
+namespace kernels {
 
 constexpr int kTilePixels = kTileSize * kTileSize;
 
@@ -39,8 +43,8 @@ inline TileGeometry tile_geometry(int32_t width, int32_t height, int32_t tile_x,
   TileGeometry g;
   g.x0 = tile_x * kTileSize;
   g.y0 = tile_y * kTileSize;
-  g.w = std::min(kTileSize, width - g.x0);
-  g.h = std::min(kTileSize, height - g.y0);
+  g.w = scalar::min(kTileSize, width - g.x0);
+  g.h = scalar::min(kTileSize, height - g.y0);
   return g;
 }
 
@@ -52,13 +56,13 @@ inline bool splat_support_box(const float* s, const TileGeometry& g, int32_t* bx
   if (!(ex >= 0.0f)) return false;  // alpha < 1/255 everywhere
   // Pixel centre of local column i is x0 + i + 0.5.
   const float lx = s[kSplatMx] - float(g.x0) - 0.5f, ly = s[kSplatMy] - float(g.y0) - 0.5f;
-  const float fx0 = std::max(lx - ex, -1.0f), fx1 = std::min(lx + ex, float(kTileSize));
-  const float fy0 = std::max(ly - ey, -1.0f), fy1 = std::min(ly + ey, float(kTileSize));
+  const float fx0 = scalar::max(lx - ex, -1.0f), fx1 = scalar::min(lx + ex, float(kTileSize));
+  const float fy0 = scalar::max(ly - ey, -1.0f), fy1 = scalar::min(ly + ey, float(kTileSize));
   if (!(fx0 <= fx1) || !(fy0 <= fy1)) return false;
-  *bx0 = std::max(0, int32_t(std::floor(fx0)));
-  *bx1 = std::min(g.w - 1, int32_t(std::ceil(fx1)));
-  *by0 = std::max(0, int32_t(std::floor(fy0)));
-  *by1 = std::min(g.h - 1, int32_t(std::ceil(fy1)));
+  *bx0 = scalar::max(0, int32_t(scalar::floor(fx0)));
+  *bx1 = scalar::min(g.w - 1, int32_t(scalar::ceil(fx1)));
+  *by0 = scalar::max(0, int32_t(scalar::floor(fy0)));
+  *by1 = scalar::min(g.h - 1, int32_t(scalar::ceil(fy1)));
   return *bx0 <= *bx1 && *by0 <= *by1;
 }
 
@@ -119,8 +123,8 @@ struct RasterKernels {
     int32_t row_count[kTileSize];
     bool all_done = false;
     for (int32_t c0 = 0; c0 < count && !all_done; c0 += kChunk) {
-      const int32_t cn = std::min(kChunk, count - c0);
-      std::fill(row_count, row_count + kTileSize, 0);
+      const int32_t cn = scalar::min(kChunk, count - c0);
+      scalar::fill(row_count, row_count + kTileSize, 0);
       int32_t nb = 0;
       for (int32_t k = 0; k < cn; ++k) {
         const float* s = splats + size_t(c0 + k) * kSplatStride;
@@ -200,7 +204,7 @@ struct RasterKernels {
 
   static void bwd(const RasterParams* p, int32_t tile_x, int32_t tile_y, const float* splats, int32_t count,
                   const float* final_T, const int32_t* last_in, const float* v_rgb, float* v_splats) {
-    std::fill(v_splats, v_splats + size_t(count) * kSplatStride, 0.0f);
+    scalar::fill(v_splats, v_splats + size_t(count) * kSplatStride, 0.0f);
     const TileGeometry g = tile_geometry(p->width, p->height, tile_x, tile_y);
     // Per-pixel state, walking back to front. The colour blended behind a splat only enters the
     // gradient dotted with the pixel's cotangent v, so it is kept as that scalar:
@@ -215,7 +219,7 @@ struct RasterKernels {
       const size_t pix = inside ? size_t(g.y0 + ly) * p->width + (g.x0 + lx) : 0;
       T[i] = T_fin[i] = inside ? final_T[pix] : 1.0f;
       last[i] = inside ? float(last_in[pix]) : 0.0f;  // outside pixels: no contributor, never active
-      max_last = std::max(max_last, inside ? last_in[pix] : 0);
+      max_last = scalar::max(max_last, inside ? last_in[pix] : 0);
       vr[i] = inside ? v_rgb[3 * pix] : 0.0f;
       vg[i] = inside ? v_rgb[3 * pix + 1] : 0.0f;
       vb[i] = inside ? v_rgb[3 * pix + 2] : 0.0f;
@@ -223,7 +227,7 @@ struct RasterKernels {
       behind_v[i] = next_alpha[i] = next_cv[i] = 0.0f;
     }
     const B centres = lane_centres();
-    for (int32_t i = std::min(max_last, count) - 1; i >= 0; --i) {
+    for (int32_t i = scalar::min(max_last, count) - 1; i >= 0; --i) {
       const float* s = splats + size_t(i) * kSplatStride;
       int32_t bx0, by0, bx1, by1;
       if (!splat_support_box(s, g, &bx0, &by0, &bx1, &by1)) continue;
@@ -292,4 +296,6 @@ struct RasterKernels {
   }
 };
 
-}  // namespace gs::simd::kernels
+}  // namespace kernels
+}  // inline namespace GS_SIMD_ISA_NS
+}  // namespace gs::simd

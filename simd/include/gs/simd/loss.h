@@ -18,6 +18,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "gs/simd/isa.h"
+
 namespace gs::simd {
 
 constexpr int kSsimRadius = 5;                    // window half-width, px
@@ -35,6 +37,8 @@ struct LossParams {
   double window[kSsimTaps];   // 1D Gaussian, sums to 1; window[kSsimRadius] is the centre tap
 };
 
+inline namespace GS_SIMD_ISA_NS {  // inline code: per-ISA copies (gs/simd/isa.h)
+
 inline LossParams make_loss_params(double lambda = kLossLambda) {
   LossParams p;
   p.lambda = lambda;
@@ -43,7 +47,7 @@ inline LossParams make_loss_params(double lambda = kLossLambda) {
   double sum = 0;
   for (int k = 0; k < kSsimTaps; ++k) {
     const double d = double(k - kSsimRadius);
-    p.window[k] = std::exp(-d * d / (2 * kSsimSigma * kSsimSigma));
+    p.window[k] = scalar::exp(-d * d / (2 * kSsimSigma * kSsimSigma));
     sum += p.window[k];
   }
   for (int k = 0; k < kSsimTaps; ++k) p.window[k] /= sum;
@@ -55,6 +59,8 @@ inline double loss_value(const LossParams* p, double l1, double ssim) {
   return (1 - p->lambda) * l1 + p->lambda * (1 - ssim);
 }
 
+}  // inline namespace GS_SIMD_ISA_NS
+
 // Scratch plan. Every scratch row holds one image row of 3 W interleaved values at offset
 // kLossRowPad, with at least kLossRowPad zeros on both sides: the horizontal pass (taps 3 floats
 // apart on the interleaved row, reaching 3 kSsimRadius = 15 floats) then reads the zero padding
@@ -62,6 +68,8 @@ inline double loss_value(const LossParams* p, double l1, double ssim) {
 // one row) + 3 x kSsimTaps (ring of SSIM-map cotangents) + 3 (their vertical blur) = 41.
 constexpr int kLossRowPad = 16;    // floats; >= 3 kSsimRadius and a multiple of 16 (lane alignment)
 constexpr int kLossScratchRows = 5 + 3 * kSsimTaps + 3;
+
+inline namespace GS_SIMD_ISA_NS {  // inline code: per-ISA copies (gs/simd/isa.h)
 
 inline size_t loss_row_stride(int32_t width) {
   const size_t n = 3 * size_t(width);
@@ -109,6 +117,8 @@ inline V ssim_elem_vjp(const V& mx, const V& my, const V& exx, const V& eyy, con
   *v_mx = vs2 * (my * (a2 - a1) * inv_den - mx * s * (inv_b1 - inv_b2));
   return s;
 }
+
+}  // inline namespace GS_SIMD_ISA_NS
 
 // Forward: out_l1 = mean |image - target|, out_ssim = mean SSIM map, both over 3 W H values.
 // Combine with loss_value().

@@ -17,6 +17,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "gs/simd/isa.h"
+
 namespace gs::simd {
 
 // Output activation of the second layer.
@@ -42,11 +44,13 @@ struct AdamConsts {
   double sqrt_bc2;     // sqrt(1 - beta2^t)
 };
 
+inline namespace GS_SIMD_ISA_NS {  // inline code: per-ISA copies (gs/simd/isa.h)
+
 inline AdamConsts adam_consts(const AdamParams* p) {
   const double t = double(p->step);
   AdamConsts c;
-  c.step_size = p->lr / (1 - std::pow(p->beta1, t));
-  c.sqrt_bc2 = std::sqrt(1 - std::pow(p->beta2, t));
+  c.step_size = p->lr / (1 - scalar::pow(p->beta1, t));
+  c.sqrt_bc2 = scalar::sqrt(1 - scalar::pow(p->beta2, t));
   return c;
 }
 
@@ -54,8 +58,8 @@ inline AdamConsts adam_consts(const AdamParams* p) {
 template <class T>
 inline T mlp_act2(MlpAct a, T z) {
   switch (a) {
-    case MlpAct::kSigmoid: return T(1) / (T(1) + std::exp(-z));
-    case MlpAct::kTanh: return std::tanh(z);
+    case MlpAct::kSigmoid: return T(1) / (T(1) + scalar::exp(-z));
+    case MlpAct::kTanh: return scalar::tanh(z);
     default: return z;
   }
 }
@@ -67,6 +71,8 @@ inline T mlp_act2_deriv(MlpAct a, T y) {
     default: return T(1);
   }
 }
+
+}  // inline namespace GS_SIMD_ISA_NS
 
 template <class T>
 void mlp_fwd_ref(const MlpShape* s, int32_t batch,

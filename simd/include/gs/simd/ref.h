@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "gs/simd/isa.h"
 #include "gs/simd/splat.h"
 
 namespace gs::simd {
@@ -62,6 +63,8 @@ void project_pose_tangents_ref(const ProjectParamsT<T>* p, size_t n,
                                T* d_means2d,          // [n, 2, 6] px per unit twist
                                T* d_conics);          // [n, 3, 6]
 
+inline namespace GS_SIMD_ISA_NS {  // inline code: per-ISA copies (gs/simd/isa.h)
+
 // Tile rectangle [x0, x1) x [y0, y1) in tiles covered by a projected Gaussian (3DGS getRect, with
 // the mean shifted by -0.5 px because hbgs puts pixel centres at +0.5). Returns the tile count.
 template <class T>
@@ -95,16 +98,16 @@ inline bool splat_reaches_tile(const T* mean2d, const T* conic, float two_tau, i
   if (!(a > 0.0) || !(c > 0.0) || !(a * c - b * b > 0.0)) return true;
   const double limit = double(two_tau) * 1.001 + 1e-3;
   const double x0 = tx * kTileSize + 0.5 - double(mean2d[0]);
-  const double x1 = double(std::min((tx + 1) * kTileSize, width)) - 0.5 - double(mean2d[0]);
+  const double x1 = double(scalar::min((tx + 1) * kTileSize, width)) - 0.5 - double(mean2d[0]);
   const double y0 = ty * kTileSize + 0.5 - double(mean2d[1]);
-  const double y1 = double(std::min((ty + 1) * kTileSize, height)) - 0.5 - double(mean2d[1]);
+  const double y1 = double(scalar::min((ty + 1) * kTileSize, height)) - 0.5 - double(mean2d[1]);
   if (x0 <= 0.0 && 0.0 <= x1 && y0 <= 0.0 && 0.0 <= y1) return limit >= 0.0;
   auto clampd = [](double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); };
   auto q = [&](double ux, double uy) { return a * ux * ux + 2.0 * b * ux * uy + c * uy * uy; };
   double qmin = q(x0, clampd(-b * x0 / c, y0, y1));
-  qmin = std::min(qmin, q(x1, clampd(-b * x1 / c, y0, y1)));
-  qmin = std::min(qmin, q(clampd(-b * y0 / a, x0, x1), y0));
-  qmin = std::min(qmin, q(clampd(-b * y1 / a, x0, x1), y1));
+  qmin = scalar::min(qmin, q(x1, clampd(-b * x1 / c, y0, y1)));
+  qmin = scalar::min(qmin, q(clampd(-b * y0 / a, x0, x1), y0));
+  qmin = scalar::min(qmin, q(clampd(-b * y1 / a, x0, x1), y1));
   return qmin <= limit;
 }
 
@@ -126,13 +129,15 @@ inline int32_t tile_rect_supported(const ProjectParamsT<T>* p, const T* mean2d, 
   for (int axis = 0; axis < 2; ++axis) {
     if (!(ext[axis] < 1e6)) continue;  // unbounded support: keep the 3-sigma rect
     const double centre = double(mean2d[axis]) - 0.5;  // in pixel-index units
-    const double lo = std::floor((centre - ext[axis] - 0.5) / kTileSize);
-    const double hi = std::floor((centre + ext[axis] + 0.5) / kTileSize) + 1;
-    if (lo > double(rect[axis])) rect[axis] = int32_t(std::min(lo, double(rect[axis + 2])));
-    if (hi < double(rect[axis + 2])) rect[axis + 2] = int32_t(std::max(hi, double(rect[axis])));
+    const double lo = scalar::floor((centre - ext[axis] - 0.5) / kTileSize);
+    const double hi = scalar::floor((centre + ext[axis] + 0.5) / kTileSize) + 1;
+    if (lo > double(rect[axis])) rect[axis] = int32_t(scalar::min(lo, double(rect[axis + 2])));
+    if (hi < double(rect[axis + 2])) rect[axis + 2] = int32_t(scalar::max(hi, double(rect[axis])));
   }
   return (rect[2] - rect[0]) * (rect[3] - rect[1]);
 }
+
+}  // inline namespace GS_SIMD_ISA_NS
 
 // One splat evaluated at a pixel centre (px, py): offsets, Gaussian falloff G and alpha.
 template <class T>
@@ -140,6 +145,8 @@ struct SplatEval {
   T dx, dy, G, alpha;
   bool clamped;  // alpha hit the 0.99 ceiling: no gradient flows to opacity or the Gaussian
 };
+
+inline namespace GS_SIMD_ISA_NS {  // inline code: per-ISA copies (gs/simd/isa.h)
 
 // Returns false when the splat does not contribute to the pixel (power > 0, which only a
 // non-positive-definite conic gives, or alpha below 1/255).
@@ -149,12 +156,14 @@ inline bool eval_splat_ref(const T* s, T px, T py, SplatEval<T>* e) {
   e->dy = s[kSplatMy] - py;
   const T power = T(-0.5) * (s[kSplatA] * e->dx * e->dx + s[kSplatC] * e->dy * e->dy) - s[kSplatB] * e->dx * e->dy;
   if (power > T(0)) return false;
-  e->G = std::exp(power);
+  e->G = scalar::exp(power);
   const T raw = s[kSplatOpacity] * e->G;
   e->clamped = raw > T(kAlphaMax);
   e->alpha = e->clamped ? T(kAlphaMax) : raw;
   return e->alpha >= T(kAlphaMin);
 }
+
+}  // inline namespace GS_SIMD_ISA_NS
 
 // Blends one tile front to back. splats holds `count` packed records sorted by depth.
 // Writes the tile's pixels of out_rgb [H, W, 3], out_T [H, W] (final transmittance), out_last

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Kernel ABI of the tile splatting renderer: constants, per-camera parameters and the packed
-// per-intersection record. Plain data only; this header includes nothing of the project.
+// per-intersection record. Plain data only; this header includes nothing of the project
+// but gs/simd/isa.h.
 //
 // Semantics follow the 3DGS tile rasteriser (Kerbl et al. 2023, and gsplat's conventions):
 // near cull at z <= 0.2, EWA Jacobian with tan-clamp 1.3 x field of view, +0.3 px^2 dilation,
@@ -11,6 +12,8 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+
+#include "gs/simd/isa.h"
 
 #if defined(__GNUC__)
 #define GS_RESTRICT __restrict__
@@ -40,6 +43,8 @@ enum SplatField {
   kSplatTwoTau, kSplatExtX, kSplatExtY
 };
 
+inline namespace GS_SIMD_ISA_NS {  // inline code: per-ISA copies (gs/simd/isa.h)
+
 // Support of a splat: two_tau = 2 ln(255 o), so alpha >= 1/255 needs power >= -two_tau / 2, and the
 // half-extents (px) of the box outside which alpha is provably below 1/255 (|d_x| <= sqrt(two_tau
 // cov_xx), cov = conic^-1), plus a 1 px margin for rounding. out = [two_tau, ext_x, ext_y]; a splat
@@ -51,16 +56,18 @@ inline void splat_support(const float* conic, float opacity, float* out) {
     out[0] = -1.0f; out[1] = out[2] = -1.0f;
     return;
   }
-  const float two_tau = 2.0f * std::log(255.0f * opacity);
+  const float two_tau = 2.0f * scalar::log(255.0f * opacity);
   const float det = a * c - b * b;
   out[0] = two_tau;
   if (det > 0.0f && a > 0.0f) {
-    out[1] = std::sqrt(two_tau * c / det) + 1.0f;
-    out[2] = std::sqrt(two_tau * a / det) + 1.0f;
+    out[1] = scalar::sqrt(two_tau * c / det) + 1.0f;
+    out[2] = scalar::sqrt(two_tau * a / det) + 1.0f;
   } else {
     out[1] = out[2] = 1e30f;
   }
 }
+
+}  // inline namespace GS_SIMD_ISA_NS
 
 // Per-camera constants for projection, precomputed once per frame.
 template <class T>
@@ -81,6 +88,8 @@ struct RasterParamsT {
 };
 using RasterParams = RasterParamsT<float>;
 
+inline namespace GS_SIMD_ISA_NS {
+
 // Fills the derived fields of a ProjectParamsT from R, t and intrinsics (gsplat's limits, which
 // reduce to 1.3 tan(fov/2) for a centred principal point).
 template <class T>
@@ -94,5 +103,7 @@ inline void finish_project_params(ProjectParamsT<T>* p) {
   p->tiles_x = (p->width + kTileSize - 1) / kTileSize;
   p->tiles_y = (p->height + kTileSize - 1) / kTileSize;
 }
+
+}  // inline namespace GS_SIMD_ISA_NS
 
 }  // namespace gs::simd
