@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// bench_register: speed against accuracy of test-view registration (gs::model::Registrar) on a
+// bench_register: speed against accuracy of test-view registration (gs::pose::Registrar) on a
 // trained model. Every test view is registered from its dataset pose perturbed by the kFixed
 // protocol (an exact rotation of D degrees about a random axis and a camera-centre shift of
 // D/100 of the scene radius, seeded per view), for D in --init-errors, each solver (lm, adam) and
@@ -22,12 +22,12 @@
 
 #include "bench_common.h"
 #include "gs/io/colmap.h"
-#include "gs/model/register.h"
 #include "gs/model/trainer.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
+#include "gs/pose/register.h"
 #include "svg_plot.h"
 
 #ifndef GS_BENCH_DEFAULT_DATASET
@@ -67,7 +67,7 @@ double centre_distance(const Pose& a, const Pose& b) {
 // One solver and iteration budget.
 struct Setting {
   std::string solver, budget;
-  model::RegisterOptions::Solver kind;
+  pose::RegisterOptions::Solver kind;
   int lm_iterations, adam_iterations;  // per level
   int keyframe_iterations, keyframes;  // kKeyframe: LM steps per level per keyframe, keyframes
 };
@@ -133,9 +133,9 @@ int run(int argc, char** argv) {
       for (const std::string& b : split_list(budget_list)) {
         if (b != "small" && b != "default") throw std::invalid_argument("budget '" + b + "' is not small or default");
         const bool small = b == "small";
-        const model::RegisterOptions::Solver kind = so == "lm"         ? model::RegisterOptions::kGaussNewton
-                                                    : so == "adam"     ? model::RegisterOptions::kAdam
-                                                                       : model::RegisterOptions::kKeyframe;
+        const pose::RegisterOptions::Solver kind = so == "lm"         ? pose::RegisterOptions::kGaussNewton
+                                                    : so == "adam"     ? pose::RegisterOptions::kAdam
+                                                                       : pose::RegisterOptions::kKeyframe;
         settings.push_back({so, b, kind, small ? 5 : 20, small ? 25 : 100, small ? 5 : 15, small ? 2 : 3});
       }
     }
@@ -228,13 +228,13 @@ int run(int argc, char** argv) {
   }
 
   // One registrar, re-configured (not re-planned) per setting.
-  model::RegisterOptions ropt;
+  pose::RegisterOptions ropt;
   ropt.finest_downscale = downscale;
-  Expected<std::unique_ptr<model::Registrar>> reg = model::Registrar::create(model, max_w, max_h, ropt, &pool);
+  Expected<std::unique_ptr<pose::Registrar>> reg = pose::Registrar::create(model, max_w, max_h, ropt, &pool);
   if (!reg.ok()) die(reg.status().to_string());
-  model::Registrar& r = **reg;
+  pose::Registrar& r = **reg;
   {  // warm-up (untimed): first touches of the planned memory
-    model::RegisterResult res;
+    pose::RegisterResult res;
     if (Status st = r.register_view(test_views[0]->image.pixels.data(), test_views[0]->camera.intr, truth[test_index[0]], &res);
         !st.ok())
       die(st.to_string());
@@ -245,7 +245,7 @@ int run(int argc, char** argv) {
   const double t_sweep = platform::now_seconds();
   for (size_t si = 0; si < settings.size(); ++si) {
     const Setting& s = settings[si];
-    model::RegisterOptions& o = r.mutable_options();
+    pose::RegisterOptions& o = r.mutable_options();
     o.solver = s.kind;
     o.max_iterations_per_level = s.lm_iterations;
     o.adam_iterations_per_level = s.adam_iterations;
@@ -266,7 +266,7 @@ int run(int argc, char** argv) {
       for (size_t k = 0; k < test_views.size(); ++k) {
         const io::DatasetView& v = *test_views[k];
         const size_t i = test_index[k];
-        model::RegisterResult res;
+        pose::RegisterResult res;
         if (Status st = r.register_view(v.image.pixels.data(), v.camera.intr, start[i], &res); !st.ok())
           die(v.name + ": " + st.to_string());
         Row row;
@@ -276,7 +276,7 @@ int run(int argc, char** argv) {
         row.ms = res.milliseconds;
         row.success = row.rot < 1.0 && row.frac < 0.01;
         row.converged = res.converged();
-        row.verdict = model::verdict_name(res.verdict);
+        row.verdict = pose::verdict_name(res.verdict);
         row.iterations = res.iterations;
         rot.push_back(row.rot), frac.push_back(row.frac), ms.push_back(row.ms), its.push_back(row.iterations);
         ok += row.success, conv += row.converged;

@@ -16,7 +16,7 @@
 #include "common.h"
 #include "gs/io/colmap.h"
 #include "gs/platform/file.h"
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
 
 namespace hbgs::cli {
 namespace {

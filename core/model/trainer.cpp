@@ -12,11 +12,11 @@
 #include "byte_codec.h"
 #include "float_backend.h"
 #include "gs/model/image_features.h"
-#include "gs/model/register.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
+#include "gs/pose/register.h"
 #include "gs/render.h"
 
 namespace gs::model {
@@ -82,7 +82,7 @@ struct Trainer::Impl {
   std::vector<const Camera*> cameras;   // -> view_cameras (the image-feature bank reads these)
   std::vector<double> pose_m, pose_v;   // [views, 6] Adam moments of the pose twists
   std::vector<int32_t> pose_steps;      // [views] Adam steps taken per pose
-  std::unique_ptr<Registrar> registrar;  // registration passes (pose_register_every > 0)
+  std::unique_ptr<pose::Registrar> registrar;  // registration passes (pose_register_every > 0)
   platform::ThreadPool* pool = nullptr;
   const simd::KernelTable* kernels = nullptr;
   ImageFeatureBank bank;
@@ -192,9 +192,9 @@ struct Trainer::Impl {
     registrar->mutable_options().finest_downscale = std::max(2, downscale_at(it));
     for (size_t v = 0; v < views.size(); ++v) {
       const io::DatasetView& view = *views[v];
-      RegisterResult r;
+      pose::RegisterResult r;
       GS_RETURN_IF_ERROR(registrar->register_view(view.image.pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
-      if (!(r.final_rmse < r.initial_rmse) || r.verdict == RegisterVerdict::kDiverged || r.verdict == RegisterVerdict::kNothingVisible)
+      if (!(r.final_rmse < r.initial_rmse) || r.verdict == pose::RegisterVerdict::kDiverged || r.verdict == pose::RegisterVerdict::kNothingVisible)
         continue;
       view_cameras[v].pose = r.pose;
       std::fill(pose_m.begin() + std::ptrdiff_t(6 * v), pose_m.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
@@ -466,9 +466,9 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   if (d.paper()) d.bank.compute(d.model.positions.data(), d.model.anchor_count, d.model.image_raw.data(), pool);
   uint64_t bytes = Renderer::plan_bytes(*rc);
   if (options.pose_register_every > 0) {
-    RegisterOptions ro;
+    pose::RegisterOptions ro;
     ro.max_iterations_per_level = 10;
-    Expected<std::unique_ptr<Registrar>> reg = Registrar::create(d.model, max_w, max_h, ro, pool, d.kernels, cap);
+    Expected<std::unique_ptr<pose::Registrar>> reg = pose::Registrar::create(d.model, max_w, max_h, ro, pool, d.kernels, cap);
     if (!reg.ok()) return reg.status();
     d.registrar = std::move(reg).value();
     bytes += d.registrar->planned_bytes();

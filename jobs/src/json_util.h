@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gs/model/evaluate.h"
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
 #include "gs/status.h"
 
 namespace gs::jobs {

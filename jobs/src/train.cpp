@@ -19,7 +19,7 @@
 #include "gs/capture/sfm_pose_init.h"
 #include "gs/jobs/pose_truth.h"
 #include "gs/jobs/run_folder.h"
-#include "gs/model/point_alignment.h"
+#include "gs/pose/point_alignment.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"

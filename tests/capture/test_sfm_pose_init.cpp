@@ -74,7 +74,7 @@ TEST_CASE("ICP Sim3 recovers the frame from a few degrees off with noise and out
 
   double before = 0, after = 0;
   int pairs = 0, iterations = 0;
-  const gs::pose::Sim3 got = gs::capture::icp_sim3(source.data(), source.size() / 3, target.data(), target.size() / 3,
+  const gs::pose::Sim3 got = gs::pose::icp_sim3(source.data(), source.size() / 3, target.data(), target.size() / 3,
                                                    start, 60, 2.5, &before, &after, &pairs, &iterations);
   MESSAGE("ICP: median distance ", before, " -> ", after, ", ", pairs, " pairs, ", iterations, " iterations");
   CHECK(rotation_deg(got.R, truth.R) < 0.1);

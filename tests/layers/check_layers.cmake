@@ -4,7 +4,7 @@
 # include path (a library only sees the roots of the libraries it links), so a compiled upward
 # include fails to build; this check also catches header-only uses and relative includes.
 #   cmake -DSOURCE_DIR=<repo> -P check_layers.cmake
-# Table: library, its folders (sources and private headers), its public include root, and the
+# Table: library, its folders (sources and private headers), its public include roots, and the
 # libraries it may include (everything below it, listed in full).
 if(NOT SOURCE_DIR)
   message(FATAL_ERROR "pass -DSOURCE_DIR=<repository root>")
@@ -20,8 +20,8 @@ set(simd_may "")
 set(platform_dirs platform)
 set(platform_root platform/include)
 set(platform_may base)
-set(core_dirs core/include core/base core/render core/scene)
-set(core_root core/include)
+set(core_dirs core/include core/pose core/render core/scene)
+set(core_root core/include core/pose/include)
 set(core_may base simd platform)
 set(io_dirs core/io)
 set(io_root core/io/include)
@@ -29,8 +29,8 @@ set(io_may base simd platform core)
 set(metrics_dirs core/metrics)
 set(metrics_root core/metrics/include)
 set(metrics_may base simd platform core io)
-set(model_dirs core/model)
-set(model_root core/model/include)
+set(model_dirs core/model core/pose/photometric)
+set(model_root core/model/include core/pose/photometric/include)
 set(model_may base simd platform core io metrics)
 set(capture_dirs capture)
 set(capture_root capture/include)
@@ -43,7 +43,8 @@ set(synth_root apps/synth/include)
 set(synth_may base simd platform core io)
 
 # Folders holding a library's own sources that sit inside another library's folder (core/ holds
-# io, metrics and model): a file belongs to the library with the longest matching folder.
+# io, metrics and model; core/pose/photometric is model's): a file belongs to the library with the
+# longest matching folder.
 function(owner_of_file rel out)
   set(best "")
   set(best_len 0)
@@ -84,8 +85,13 @@ foreach(lib IN LISTS libs)
           owner_of_file("${inc_rel}" target_lib)
         else()
           foreach(other IN LISTS libs)
-            if(EXISTS "${SOURCE_DIR}/${${other}_root}/${inc}")
-              set(target_lib ${other})
+            foreach(root IN LISTS ${other}_root)
+              if(EXISTS "${SOURCE_DIR}/${root}/${inc}")
+                set(target_lib ${other})
+                break()
+              endif()
+            endforeach()
+            if(NOT target_lib STREQUAL "")
               break()
             endif()
           endforeach()

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Registration against a frozen model (gs/model/register.h) on a generated model: anchors on a
+// Registration against a frozen model (gs/pose/register.h) on a generated model: anchors on a
 // noisy sphere with random features and offsets (so the render is textured), targets rendered by
 // the same model at a known pose. Checks recovery from a perturbed start with both solvers, the
 // allocation-free loop, the time budget, and the hard cases: a start pose looking away from the
@@ -12,10 +12,10 @@
 #include <vector>
 
 #include "gs/io/image.h"
-#include "gs/model/register.h"
 #include "gs/model/trainer.h"
 #include "gs/platform/thread_pool.h"
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
+#include "gs/pose/register.h"
 #include "support/alloc_counter.h"
 #include "support/model_fixtures.h"
 
@@ -88,17 +88,17 @@ const Fixture& fixture() {
 TEST_CASE("register: keyframe alignment and Gauss-Newton recover the pose from a 5 degree and 5 percent start") {
   const Fixture& f = fixture();
   platform::ThreadPool pool(2);
-  for (RegisterOptions::Solver solver : {RegisterOptions::kKeyframe, RegisterOptions::kGaussNewton}) {
-  RegisterOptions opt;
+  for (pose::RegisterOptions::Solver solver : {pose::RegisterOptions::kKeyframe, pose::RegisterOptions::kGaussNewton}) {
+  pose::RegisterOptions opt;
   opt.solver = solver;
-  auto reg = Registrar::create(f.model, kW, kH, opt, &pool);
+  auto reg = pose::Registrar::create(f.model, kW, kH, opt, &pool);
   REQUIRE(reg.ok());
   for (uint64_t seed : {1, 2, 3}) {
     const Pose start = f.perturbed(5, 0.05, seed);
-    RegisterResult r;
+    pose::RegisterResult r;
     REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, start, &r).ok());
     const double rot = pose::rotation_error_deg(r.pose, f.truth.pose), tr = f.centre_error(r.pose);
-    MESSAGE(std::string(solver == RegisterOptions::kKeyframe ? "keyframe" : "gauss-newton") << " seed " << seed << ": " << std::string(verdict_name(r.verdict)) << ", rotation error " << rot << " deg, centre error " << tr
+    MESSAGE(std::string(solver == pose::RegisterOptions::kKeyframe ? "keyframe" : "gauss-newton") << " seed " << seed << ": " << std::string(pose::verdict_name(r.verdict)) << ", rotation error " << rot << " deg, centre error " << tr
                     << ", RMSE " << r.initial_rmse << " -> " << r.final_rmse << ", " << r.iterations << " iterations, "
                     << r.levels << " levels, " << r.milliseconds << " ms");
     CHECK(r.converged());
@@ -121,15 +121,15 @@ TEST_CASE("register: coarse start candidates widen the keyframe basin") {
   const double start_rot = pose::rotation_error_deg(start, f.truth.pose);
   double rot[2] = {0, 0};
   for (int candidates : {1, 9}) {
-    RegisterOptions opt;
+    pose::RegisterOptions opt;
     opt.coarse_candidates = candidates;
-    auto reg = Registrar::create(f.model, kW, kH, opt, &pool);
+    auto reg = pose::Registrar::create(f.model, kW, kH, opt, &pool);
     REQUIRE(reg.ok());
-    RegisterResult r;
+    pose::RegisterResult r;
     REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, start, &r).ok());
     rot[candidates == 9] = pose::rotation_error_deg(r.pose, f.truth.pose);
     MESSAGE(candidates << " candidate(s): " << start_rot << " -> " << rot[candidates == 9] << " deg, "
-                       << std::string(verdict_name(r.verdict)) << ", " << r.milliseconds << " ms");
+                       << std::string(pose::verdict_name(r.verdict)) << ", " << r.milliseconds << " ms");
     if (candidates == 9) {
       CHECK(r.converged());
       CHECK(rot[1] < 0.1);
@@ -140,12 +140,12 @@ TEST_CASE("register: coarse start candidates widen the keyframe basin") {
 
 TEST_CASE("register: Adam reduces a 3 degree error and keeps the best pose") {
   const Fixture& f = fixture();
-  RegisterOptions opt;
-  opt.solver = RegisterOptions::kAdam;
-  auto reg = Registrar::create(f.model, kW, kH, opt, nullptr);
+  pose::RegisterOptions opt;
+  opt.solver = pose::RegisterOptions::kAdam;
+  auto reg = pose::Registrar::create(f.model, kW, kH, opt, nullptr);
   REQUIRE(reg.ok());
   const Pose start = f.perturbed(3, 0.02, 7);
-  RegisterResult r;
+  pose::RegisterResult r;
   REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, start, &r).ok());
   const double before = pose::rotation_error_deg(start, f.truth.pose), after = pose::rotation_error_deg(r.pose, f.truth.pose);
   MESSAGE("Adam: rotation error " << before << " -> " << after << " deg, RMSE " << r.initial_rmse << " -> " << r.final_rmse
@@ -157,14 +157,14 @@ TEST_CASE("register: Adam reduces a 3 degree error and keeps the best pose") {
 TEST_CASE("register: the registration loop allocates nothing after set-up") {
   const Fixture& f = fixture();
   platform::ThreadPool pool(2);
-  for (RegisterOptions::Solver solver : {RegisterOptions::kKeyframe, RegisterOptions::kGaussNewton, RegisterOptions::kAdam}) {
-    RegisterOptions opt;
+  for (pose::RegisterOptions::Solver solver : {pose::RegisterOptions::kKeyframe, pose::RegisterOptions::kGaussNewton, pose::RegisterOptions::kAdam}) {
+    pose::RegisterOptions opt;
     opt.solver = solver;
     opt.adam_iterations_per_level = 10;
-    auto reg = Registrar::create(f.model, kW, kH, opt, &pool);
+    auto reg = pose::Registrar::create(f.model, kW, kH, opt, &pool);
     REQUIRE(reg.ok());
     const Pose start = f.perturbed(4, 0.03, 11);
-    RegisterResult r;
+    pose::RegisterResult r;
     REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, start, &r).ok());  // warm-up
     test::AllocationScope scope;
     REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(6, 0.04, 12), &r).ok());
@@ -175,28 +175,28 @@ TEST_CASE("register: the registration loop allocates nothing after set-up") {
 
 TEST_CASE("register: hard cases give a verdict not garbage") {
   const Fixture& f = fixture();
-  auto reg = Registrar::create(f.model, kW, kH, RegisterOptions{}, nullptr);
+  auto reg = pose::Registrar::create(f.model, kW, kH, pose::RegisterOptions{}, nullptr);
   REQUIRE(reg.ok());
-  RegisterResult r;
+  pose::RegisterResult r;
   SUBCASE("start pose looking away from the scene") {
     const double C[3] = {0.3, -0.4, -6.0}, away[3] = {0.3, -0.4, -12.0};
     const Camera cam = test::look_at(C, away, f.truth.intr);
     REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, cam.pose, &r).ok());
-    CHECK(r.verdict == RegisterVerdict::kNothingVisible);
+    CHECK(r.verdict == pose::RegisterVerdict::kNothingVisible);
     CHECK(!r.converged());
   }
   SUBCASE("start pose inside the far side of the scene facing outwards") {
     const double C[3] = {0, 0, 8.0}, away[3] = {0, 0, 20.0};
     const Camera cam = test::look_at(C, away, f.truth.intr);
     REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, cam.pose, &r).ok());
-    CHECK(r.verdict == RegisterVerdict::kNothingVisible);
+    CHECK(r.verdict == pose::RegisterVerdict::kNothingVisible);
   }
   SUBCASE("an image of something else (noise) fails") {
     std::vector<uint8_t> noise(f.image.size());
     std::mt19937 rng(3);
     for (uint8_t& v : noise) v = uint8_t(rng() & 255);
     REQUIRE((*reg)->register_view(noise.data(), f.truth.intr, f.perturbed(5, 0.05, 1), &r).ok());
-    MESSAGE("noise: " << std::string(verdict_name(r.verdict)) << ", RMSE " << r.final_rmse << ", explained " << r.explained
+    MESSAGE("noise: " << std::string(pose::verdict_name(r.verdict)) << ", RMSE " << r.final_rmse << ", explained " << r.explained
                       << ", coverage " << r.coverage);
     CHECK(!r.converged());
     CHECK(r.explained < 0.5);
@@ -205,7 +205,7 @@ TEST_CASE("register: hard cases give a verdict not garbage") {
   SUBCASE("an all-black image fails") {
     std::vector<uint8_t> black(f.image.size(), 0);
     REQUIRE((*reg)->register_view(black.data(), f.truth.intr, f.perturbed(5, 0.05, 1), &r).ok());
-    MESSAGE("black: " << std::string(verdict_name(r.verdict)) << ", RMSE " << r.final_rmse << ", explained " << r.explained
+    MESSAGE("black: " << std::string(pose::verdict_name(r.verdict)) << ", RMSE " << r.final_rmse << ", explained " << r.explained
                       << ", coverage " << r.coverage);
     CHECK(!r.converged());
     CHECK(r.explained == 0);
@@ -238,14 +238,14 @@ TEST_CASE("register: hard cases give a verdict not garbage") {
 
 TEST_CASE("register: a tiny time budget stops early with the best pose so far") {
   const Fixture& f = fixture();
-  RegisterOptions opt;
+  pose::RegisterOptions opt;
   opt.time_budget_ms = 1e-3;
-  auto reg = Registrar::create(f.model, kW, kH, opt, nullptr);
+  auto reg = pose::Registrar::create(f.model, kW, kH, opt, nullptr);
   REQUIRE(reg.ok());
-  RegisterResult r;
+  pose::RegisterResult r;
   const Pose start = f.perturbed(5, 0.05, 4);
   REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, start, &r).ok());
-  CHECK(r.verdict == RegisterVerdict::kTimeBudget);
+  CHECK(r.verdict == pose::RegisterVerdict::kTimeBudget);
   CHECK(r.final_rmse <= r.initial_rmse);
 }
 

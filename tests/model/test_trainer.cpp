@@ -31,11 +31,11 @@
 #include "gs/model/hybrid_model.h"
 #include "gs/model/trainer.h"
 #include "gs/platform/thread_pool.h"
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
 #include "gs/render.h"
 #include "support/alloc_counter.h"
-#include "support/temp_dir.h"
 #include "support/model_fixtures.h"
+#include "support/temp_dir.h"
 
 namespace gs::model {
 namespace {

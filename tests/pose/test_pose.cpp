@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Pose utilities (gs/pose.h): se(3) exp/log round trips including tiny and near-pi angles, the
+// Pose utilities (gs/pose/pose.h): se(3) exp/log round trips including tiny and near-pi angles, the
 // left-twist convention the renderer's v_pose uses, checked pose input, the seeded pose-noise
 // protocols (statistics, exactness, determinism) and Sim(3)-aligned pose errors.
 #include <doctest/doctest.h>
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
 
 namespace {
 

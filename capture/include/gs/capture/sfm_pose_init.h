@@ -5,8 +5,8 @@
 //      mapping with the dataset's intrinsics held fixed), ignoring the given poses entirely;
 //   2. its arbitrary frame is brought into the dataset's frame by a Sim(3) fitted on camera centres,
 //      reconstructed against given; noise on the given centres averages out over the views;
-//   3. the Sim(3) is refined by trimmed point-to-point ICP between COLMAP's points and the
-//      dataset's SfM points, which fixes the frame to the precision of the geometry.
+//   3. the Sim(3) is refined by trimmed point-to-point ICP (pose::icp_sim3) between COLMAP's points
+//      and the dataset's SfM points, which fixes the frame to the precision of the geometry.
 // Views COLMAP could not register keep their given pose. The photometric stages (point alignment,
 // joint bundle adjustment) then refine from there.
 #pragma once
@@ -17,7 +17,7 @@
 #include "gs/camera.h"
 #include "gs/capture/colmap_sfm.h"
 #include "gs/io/image.h"
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
 #include "gs/status.h"
 
 namespace gs::capture {
@@ -45,11 +45,5 @@ struct SfmPoseInitReport {
 Status init_poses_by_sfm(const std::vector<const io::Image8*>& images, const std::vector<std::string>& names,
                          std::vector<Camera>* cams, const float* points_xyz, size_t npoints, const std::string& work_dir,
                          const SfmPoseInitOptions& options, const ProgressFn& progress, SfmPoseInitReport* report);
-
-// Trimmed ICP (point to point, Sim(3) updates) of source points onto target points from an initial
-// transform: returns the refined transform. Exposed for testing. source/target: [n, 3].
-pose::Sim3 icp_sim3(const double* source, size_t nsource, const double* target, size_t ntarget,
-                    const pose::Sim3& initial, int iterations, double trim, double* median_before,
-                    double* median_after, int* pairs, int* iterations_run);
 
 }  // namespace gs::capture

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "gs/io/colmap.h"
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
 #include "gs/status.h"
 
 namespace gs::jobs {

@@ -13,8 +13,8 @@
 
 #include "gs/camera.h"
 #include "gs/jobs/run_folder.h"
-#include "gs/model/register.h"
-#include "gs/pose.h"
+#include "gs/pose/register.h"
+#include "gs/pose/pose.h"
 #include "gs/status.h"
 
 namespace gs::jobs {
@@ -22,7 +22,7 @@ namespace gs::jobs {
 struct RegisterRunOptions {
   std::string input;    // run folder (from train_run) or .hbgs model file
   std::string dataset;  // "" : the one recorded in the run's run.json
-  std::string solver = "keyframe";  // "keyframe", "lm" or "adam" (gs/model/register.h)
+  std::string solver = "keyframe";  // "keyframe", "lm" or "adam" (gs/pose/register.h)
   int downscale = 1;                // resolution divisor of the finest level (4: quarter resolution)
   double time_budget_ms = 0;        // > 0: stop a view after this long, keeping the best pose
   int threads = 0;                  // 0: all CPUs

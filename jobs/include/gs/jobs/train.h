@@ -24,7 +24,7 @@
 #include "gs/io/colmap.h"
 #include "gs/model/evaluate.h"
 #include "gs/model/trainer.h"
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
 #include "gs/status.h"
 
 namespace gs::platform { class ThreadPool; }

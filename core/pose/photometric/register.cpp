@@ -1,21 +1,21 @@
 // SPDX-License-Identifier: MIT
-// Registration of a view against a frozen model (see gs/model/register.h): pyramid, per-level
+// Registration of a view against a frozen model (see gs/pose/register.h): pyramid, per-level
 // decoding, Levenberg-Marquardt or Adam on the pose twist, best-pose bookkeeping and the verdict.
-#include "gs/model/register.h"
+#include "gs/pose/register.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 
 #include "pose_solve.h"
-#include "float_backend.h"
+#include "../../model/float_backend.h"
 #include "gs/io/image.h"
 #include "gs/model/step_graph.h"
 #include "gs/platform/clock.h"
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
 #include "gs/render.h"
 
-namespace gs::model {
+namespace gs::pose {
 
 const char* verdict_name(RegisterVerdict v) {
   switch (v) {
@@ -45,13 +45,13 @@ Camera decode_camera(const Camera& cam) {
 }  // namespace
 
 struct Registrar::Impl {
-  const HybridModel* model = nullptr;
+  const model::HybridModel* model = nullptr;
   RegisterOptions opt;
   platform::ThreadPool* pool = nullptr;
   const simd::KernelTable* kernels = nullptr;
   Renderer renderer;
-  detail::FloatBackend backend;
-  StepWorkspace<float> ws;
+  model::detail::FloatBackend backend;
+  model::StepWorkspace<float> ws;
   std::vector<float> target, rgb, v_rgb;  // [H, W, 3] of the current level
   // kKeyframe: the keyframe at the finest level (colour, alpha-weighted depth, alpha) and its
   // box-filtered level copies, and the target at the level.
@@ -72,11 +72,11 @@ struct Registrar::Impl {
   // Decodes the model's Gaussians for a pose (colours for its view direction).
   size_t decode(const Camera& cam) {
     size_t V = 0;
-    return decode_view(backend, detail::model_params(*model), decode_camera(cam), ws, &V);
+    return model::decode_view(backend, model::detail::model_params(*model), decode_camera(cam), ws, &V);
   }
 
   // The Gaussians of the last decode, as the renderer takes them.
-  GaussianParams gaussians() const { return detail::gaussian_params(ws.ng); }
+  GaussianParams gaussians() const { return model::detail::gaussian_params(ws.ng); }
 
   Status render(const Camera& cam) {
     const GaussianParams gp = gaussians();
@@ -387,7 +387,7 @@ struct Registrar::Impl {
 Registrar::Registrar() : impl_(new Impl) {}
 Registrar::~Registrar() = default;
 
-Expected<std::unique_ptr<Registrar>> Registrar::create(const HybridModel& model, int max_width, int max_height,
+Expected<std::unique_ptr<Registrar>> Registrar::create(const model::HybridModel& model, int max_width, int max_height,
                                                        const RegisterOptions& options, platform::ThreadPool* pool,
                                                        const simd::KernelTable* kernels, size_t plan_anchor_rows) {
   GS_RETURN_IF_ERROR(model.config.validate());
@@ -409,7 +409,7 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const HybridModel& model,
   d.extent = model.scene_extent;
   const size_t cap = std::max(model.anchor_count, plan_anchor_rows);
   d.planned_rows = cap;
-  Expected<RenderCapacity> rc = detail::plan_model_pipeline(model, cap, max_width, max_height, 1, 1, pool, d.kernels,
+  Expected<RenderCapacity> rc = model::detail::plan_model_pipeline(model, cap, max_width, max_height, 1, 1, pool, d.kernels,
                                                             &d.renderer, &d.backend, &d.ws);
   if (!rc.ok()) return rc.status();
   d.allocate_images();
@@ -531,4 +531,4 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
   return Status::Ok();
 }
 
-}  // namespace gs::model
+}  // namespace gs::pose

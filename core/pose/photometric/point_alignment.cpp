@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Photometric alignment of camera poses to fixed SfM points (see gs/model/point_alignment.h).
-#include "gs/model/point_alignment.h"
+// Photometric alignment of camera poses to fixed SfM points (see gs/pose/point_alignment.h).
+#include "gs/pose/point_alignment.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,10 +8,10 @@
 #include "pose_solve.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/thread_pool.h"
-#include "gs/pose.h"
+#include "gs/pose/pose.h"
 #include "gs/stats.h"
 
-namespace gs::model {
+namespace gs::pose {
 
 namespace {
 
@@ -323,4 +323,4 @@ Status align_poses_to_points(const float* xyz, const uint8_t* rgb, size_t n, con
   return Status::Ok();
 }
 
-}  // namespace gs::model
+}  // namespace gs::pose

@@ -21,7 +21,7 @@
 
 namespace gs::platform { class ThreadPool; }
 
-namespace gs::model {
+namespace gs::pose {
 
 struct PointAlignOptions {
   int max_levels = 4;            // pyramid levels (each halves), coarsest at least min_width wide
@@ -59,4 +59,11 @@ Status align_poses_to_points(const float* xyz, const uint8_t* rgb, size_t n, con
                              std::vector<Camera>* cameras, const PointAlignOptions& options, platform::ThreadPool* pool,
                              PointAlignReport* report);
 
+}  // namespace gs::pose
+
+// Transition: jobs/ still names these gs::model::...; remove once it says gs::pose::.
+namespace gs::model {
+using pose::align_poses_to_points;
+using pose::PointAlignOptions;
+using pose::PointAlignReport;
 }  // namespace gs::model

@@ -100,6 +100,14 @@ Pose transform_pose(const Sim3& T, const Pose& pose);
 void transform_point(const Sim3& T, const double x[3], double y[3]);
 // a then b: X'' = b(a(X)).
 Sim3 compose(const Sim3& b, const Sim3& a);
+// Trimmed ICP (point to point, Sim(3) updates by fit_sim3) of source points onto target points from
+// an initial transform; returns the refined transform. Pairs farther than trim x the median pair
+// distance are dropped; the search radius starts at 0.1 x the target's RMS spread and shrinks to
+// 3 x trim x median. source/target: [n, 3]; the outputs may be nullptr. (Frame alignment of a
+// structure-from-motion reconstruction onto the dataset's points, gs/capture/sfm_pose_init.h.)
+Sim3 icp_sim3(const double* source, size_t nsource, const double* target, size_t ntarget, const Sim3& initial,
+              int iterations, double trim, double* median_before, double* median_after, int* pairs,
+              int* iterations_run);
 
 // Scene frame used by noise and error fractions: mean camera centre and the largest distance of a
 // centre from it (floored at 1e-9).

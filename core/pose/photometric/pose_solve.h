@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
-// Private to gs_model: what the pose solvers share (registration's keyframe and renderer
-// Levenberg-Marquardt, the point alignment of training poses): bilinear colour sampling with
-// derivatives, the projection's twist Jacobian, Huber weights and the damped, trust-region-limited
+// Private to the photometric pose solvers (built into gs_model): what they share (registration's
+// keyframe and renderer Levenberg-Marquardt, the point alignment of training poses): bilinear
+// colour sampling with derivatives, the projection's twist Jacobian, Huber weights and the damped, trust-region-limited
 // 6-DoF step.
 #pragma once
 
@@ -10,7 +10,7 @@
 #include <cmath>
 #include <cstddef>
 
-namespace gs::model::detail {
+namespace gs::pose::detail {
 
 // RGB float image [h, w, 3] view.
 struct RgbView {
@@ -74,4 +74,4 @@ inline void damped_step(const Mat6& A, const Vec6& b, double lambda, double max_
   for (int d = 0; d < 6; ++d) xi[d] *= shrink;
 }
 
-}  // namespace gs::model::detail
+}  // namespace gs::pose::detail

@@ -35,7 +35,7 @@
 namespace gs::platform { class ThreadPool; }
 namespace gs::simd { struct KernelTable; }
 
-namespace gs::model {
+namespace gs::pose {
 
 struct RegisterOptions {
   enum Solver { kKeyframe, kGaussNewton, kAdam } solver = kKeyframe;
@@ -95,7 +95,7 @@ class Registrar {
   // Plans for the model's anchors (or plan_anchor_rows, for a model that will grow, e.g. during
   // training) and images up to max_width x max_height (the full resolution; levels are smaller).
   // The model must stay alive while the registrar is used; it is read (not copied) at every call.
-  static Expected<std::unique_ptr<Registrar>> create(const HybridModel& model, int max_width, int max_height,
+  static Expected<std::unique_ptr<Registrar>> create(const model::HybridModel& model, int max_width, int max_height,
                                                      const RegisterOptions& options, platform::ThreadPool* pool,
                                                      const simd::KernelTable* kernels = nullptr,
                                                      size_t plan_anchor_rows = 0);
@@ -116,4 +116,13 @@ class Registrar {
   std::unique_ptr<Impl> impl_;
 };
 
+}  // namespace gs::pose
+
+// Transition: jobs/ and apps/hbgs still name these gs::model::...; remove once they say gs::pose::.
+namespace gs::model {
+using pose::Registrar;
+using pose::RegisterOptions;
+using pose::RegisterResult;
+using pose::RegisterVerdict;
+using pose::verdict_name;
 }  // namespace gs::model

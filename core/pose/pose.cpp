@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Camera-pose utilities: se(3) twists, checked pose input, seeded pose noise, Sim(3)-aligned
-// pose errors. See gs/pose.h for the conventions; all arithmetic is in double.
-#include "gs/pose.h"
+// pose errors. See gs/pose/pose.h for the conventions; all arithmetic is in double.
+#include "gs/pose/pose.h"
 #include "gs/random.h"
 #include "gs/stats.h"
 
