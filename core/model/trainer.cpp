@@ -12,6 +12,8 @@
 #include "byte_codec.h"
 #include "float_backend.h"
 #include "gs/model/image_features.h"
+#include "gs/optim/adam.h"
+#include "gs/optim/schedule.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
@@ -25,15 +27,6 @@ namespace {
 
 constexpr char kCheckpointMagic[8] = {'H', 'B', 'G', 'S', 'C', 'K', 'P', 'T'};
 constexpr uint32_t kCheckpointVersion = 2;  // 2: training poses and their Adam state
-
-// expon(lr0, lr1, steps)(it): log-linear from lr0 to lr1 over `steps`, then held (Part B section 6).
-double expon_lr(double lr0, double lr1, int steps, int it) {
-  if (lr0 == lr1) return lr0;
-  const double t = std::min(std::max(double(it) / double(std::max(steps, 1)), 0.0), 1.0);
-  // A zero end makes the schedule linear: log(0) is -inf, and 0 x -inf at the last step is NaN.
-  if (!(lr0 > 0 && lr1 > 0)) return (1 - t) * lr0 + t * lr1;
-  return std::exp((1 - t) * std::log(lr0) + t * std::log(lr1));
-}
 
 // One optimised tensor: parameters (owned by the model), gradient and Adam moments. Per-anchor
 // groups hold row_floats values per anchor and are stepped over the live rows only.
@@ -207,40 +200,21 @@ struct Trainer::Impl {
 
   // One Adam step on the pose of view vi from its twist gradient g (rho, phi), retracted on SE(3).
   void pose_adam(size_t vi, const double g[6], int it) {
-    const double warm = opt.pose_warmup > 0 ? std::min(1.0, double(it) / double(opt.pose_warmup)) : 1.0;
-    const double lr_rot = warm * expon_lr(opt.lr_pose_rotation_init, opt.lr_pose_rotation_final, opt.schedule_iterations, it);
+    const double warm = optim::warmup(opt.pose_warmup, it);
+    const double lr_rot = warm * optim::expon_lr(opt.lr_pose_rotation_init, opt.lr_pose_rotation_final, opt.schedule_iterations, it);
     const double lr_tr = warm * model.scene_extent *
-                         expon_lr(opt.lr_pose_translation_init, opt.lr_pose_translation_final, opt.schedule_iterations, it);
+                         optim::expon_lr(opt.lr_pose_translation_init, opt.lr_pose_translation_final, opt.schedule_iterations, it);
     const int step = ++pose_steps[vi];
-    const double bc1 = 1 - std::pow(0.9, step), bc2 = 1 - std::pow(0.999, step);
     double xi[6];
-    for (int i = 0; i < 6; ++i) {
-      double& m = pose_m[6 * vi + size_t(i)];
-      double& v = pose_v[6 * vi + size_t(i)];
-      m = 0.9 * m + 0.1 * g[i];
-      v = 0.999 * v + 0.001 * g[i] * g[i];
-      xi[i] = -(i < 3 ? lr_tr : lr_rot) * (m / bc1) / (std::sqrt(v / bc2) + opt.adam_eps);
-    }
+    optim::twist_adam_step(g, lr_tr, lr_rot, step, opt.adam_eps, &pose_m[6 * vi], &pose_v[6 * vi], xi);
     pose::apply_left_twist(xi, &view_cameras[vi].pose);
   }
 
   void adam_all(int it) {
     const size_t M = model.anchor_count;
     for (ParamGroup& g : groups) {
-      simd::AdamParams ap{expon_lr(g.lr0, g.lr1, opt.schedule_iterations, it), 0.9, 0.999, opt.adam_eps, it};
-      const size_t n = g.live(M);
-      const size_t chunk = 16384;
-      auto body = [&](size_t b, size_t e, int) {
-        for (size_t c = b; c < e; ++c) {
-          const size_t lo = c * chunk, hi = std::min(n, lo + chunk);
-          kernels->adam_step(&ap, hi - lo, g.param + lo, g.grad.data() + lo, g.m.data() + lo, g.v.data() + lo);
-        }
-      };
-      const size_t chunks = (n + chunk - 1) / chunk;
-      if (pool && chunks > 1)
-        pool->parallel_for(chunks, 1, body);
-      else
-        body(0, chunks, 0);
+      const simd::AdamParams ap = optim::adam_params(optim::expon_lr(g.lr0, g.lr1, opt.schedule_iterations, it), it, opt.adam_eps);
+      optim::adam_step(*kernels, pool, ap, g.live(M), g.param, g.grad.data(), g.m.data(), g.v.data());
     }
   }
 

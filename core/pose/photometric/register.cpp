@@ -11,6 +11,8 @@
 #include "../../model/float_backend.h"
 #include "gs/io/image.h"
 #include "gs/model/step_graph.h"
+#include "gs/optim/adam.h"
+#include "gs/optim/schedule.h"
 #include "gs/platform/clock.h"
 #include "gs/pose/pose.h"
 #include "gs/render.h"
@@ -368,15 +370,10 @@ struct Registrar::Impl {
       GS_RETURN_IF_ERROR(renderer.backward(v_rgb.data(), &g));
       ++*iterations;
       // Cosine decay of the rate over the level (large early steps, fine at the end).
-      const double decay = 0.5 * (1 + std::cos(M_PI * double(it - 1) / double(steps)));
-      const double bc1 = 1 - std::pow(0.9, it), bc2 = 1 - std::pow(0.999, it);
+      const double decay = optim::cosine_decay(steps, it, 0.05);
       double xi[6];
-      for (int d = 0; d < 6; ++d) {
-        m[d] = 0.9 * m[d] + 0.1 * g.v_pose[d];
-        v[d] = 0.999 * v[d] + 0.001 * g.v_pose[d] * g.v_pose[d];
-        const double lr = d < 3 ? opt.adam_lr_translation * extent : opt.adam_lr_rotation;
-        xi[d] = -lr * (0.05 + 0.95 * decay) * (m[d] / bc1) / (std::sqrt(v[d] / bc2) + 1e-12);
-      }
+      optim::twist_adam_step(g.v_pose, decay * opt.adam_lr_translation * extent, decay * opt.adam_lr_rotation, it,
+                             optim::kAdamEps, m, v, xi);
       pose::apply_left_twist(xi, &cam.pose);
     }
     cam.pose = best_pose;

@@ -18,6 +18,7 @@
 #include "gs/io/colmap.h"
 #include "gs/model/hybrid_model.h"
 #include "gs/model/step_graph.h"
+#include "gs/optim/adam.h"
 #include "gs/status.h"
 
 namespace gs::platform { class ThreadPool; }
@@ -38,7 +39,7 @@ struct TrainOptions {
   double lr_mlp_cov_init = 0.004, lr_mlp_cov_final = 0.004;
   double lr_mlp_color_init = 0.008, lr_mlp_color_final = 5e-5;
   double lr_mlp_image_init = 0.004, lr_mlp_image_final = 4e-5;  // hbgs's F (no reference value)
-  double adam_eps = 1e-15;
+  double adam_eps = optim::kAdamEps;  // parameters and poses (gs/optim/adam.h)
   // Anchor growing and pruning (Part B section 7).
   int stat_start = 500, update_from = 1500, update_interval = 100, update_until = 15000;
   double densify_grad_threshold = 0.0002, success_threshold = 0.8, min_opacity = 0.005;
