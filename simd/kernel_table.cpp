@@ -54,7 +54,10 @@ struct Registry {
     if (cpu.avx2 && cpu.fma3_avx2) tables[count++] = kernel_table_avx2();
 #endif
 #if defined(GS_HAVE_SSE2)
-    if (cpu.sse2) tables[count++] = kernel_table_sse2();
+    // SSE2 is part of x86-64 itself (GS_HAVE_SSE2 is only set there), like NEON on AArch64. Not
+    // cpu.sse2: xsimd 8.1 reads it from CPUID.1 ECX bit 26 (XSAVE) instead of EDX bit 26, so a CPU
+    // without XSAVE (Core 2, qemu -cpu core2duo) would get no SIMD table at all.
+    tables[count++] = kernel_table_sse2();
 #endif
 #if defined(GS_HAVE_NEON64)
     tables[count++] = kernel_table_neon64();  // NEON is mandatory on AArch64

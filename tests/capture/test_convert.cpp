@@ -21,6 +21,7 @@
 #include "gs/capture/frame.h"
 #include "gs/simd/convert.h"
 #include "gs/simd/kernel_table.h"
+#include "support/simd_isa.h"
 
 namespace {
 
@@ -29,12 +30,6 @@ using gs::capture::PixelFormat;
 
 constexpr uint8_t kCanary = 0xA5;
 constexpr size_t kTrailer = 64;  // canary bytes after the last output row
-
-std::vector<const gs::simd::KernelTable*> simd_tables() {
-  const gs::simd::KernelTable* t[8];
-  const int n = gs::simd::available_simd_kernel_tables(t, 8);
-  return std::vector<const gs::simd::KernelTable*>(t, t + n);
-}
 
 // Output image [h, stride] plus a trailer, all canary: the kernels must write exactly the first
 // 3 w bytes of each row.
@@ -76,12 +71,8 @@ struct Size {
 const Size kSizes[] = {{1, 1},  {2, 1},  {3, 5},  {7, 2},   {8, 3},   {9, 3},    {15, 2},   {16, 4},   {17, 9},
                        {31, 3}, {32, 2}, {33, 31}, {63, 3}, {64, 2},  {65, 5},   {127, 3},  {129, 2},  {641, 479}};
 
-TEST_CASE("SIMD yuyv_to_rgb equals the reference bit for bit") {
-  const auto tables = simd_tables();
-  if (tables.empty()) MESSAGE("no SIMD kernel table on this CPU: skipped");
-  std::string names;
-  for (const auto* kt : tables) names += std::string(" ") + kt->isa;
-  MESSAGE("SIMD tables compared:" << names);
+GS_SIMD_TEST_CASE(yuyv_matches_ref, "SIMD yuyv_to_rgb equals the reference bit for bit") {
+  const gs::simd::KernelTable* const tables[] = {kt};  // one ISA per case (support/simd_isa.h)
   std::mt19937_64 rng(20240905);
   for (const Size s : kSizes) {
     CAPTURE(s.w); CAPTURE(s.h);
@@ -101,9 +92,8 @@ TEST_CASE("SIMD yuyv_to_rgb equals the reference bit for bit") {
   }
 }
 
-TEST_CASE("SIMD nv12_to_rgb equals the reference bit for bit") {
-  const auto tables = simd_tables();
-  if (tables.empty()) MESSAGE("no SIMD kernel table on this CPU: skipped");
+GS_SIMD_TEST_CASE(nv12_matches_ref, "SIMD nv12_to_rgb equals the reference bit for bit") {
+  const gs::simd::KernelTable* const tables[] = {kt};  // one ISA per case (support/simd_isa.h)
   std::mt19937_64 rng(977);
   for (const Size s : kSizes) {
     CAPTURE(s.w); CAPTURE(s.h);

@@ -14,17 +14,12 @@
 
 #include "gs/simd/kernel_table.h"
 #include "gs/simd/loss.h"
+#include "support/simd_isa.h"
 
 namespace {
 
 using gs::simd::LossParams;
 constexpr float kCanary = -12345.0f;
-
-std::vector<const gs::simd::KernelTable*> simd_tables() {
-  const gs::simd::KernelTable* t[8];
-  const int n = gs::simd::available_simd_kernel_tables(t, 8);
-  return std::vector<const gs::simd::KernelTable*>(t, t + n);
-}
 
 // Random image pair in [0, 1] with saturated 0/1 values in both and, where `equal_fraction` says,
 // image == target exactly (the L1 kink).
@@ -255,40 +250,38 @@ TEST_CASE("loss reference SSIM equals a brute-force 2D zero-padded SSIM") {
   }
 }
 
-TEST_CASE("loss kernels of every SIMD table match the float reference") {
-  const auto tables = simd_tables();
-  if (tables.empty()) {
-    MESSAGE("no SIMD kernel table on this CPU: skipped");
-    return;
-  }
-  for (const auto* kt : tables) {
-    Worst worst;
-    for (SizeCase s : {SizeCase{1, 1}, SizeCase{3, 2}, SizeCase{11, 11}, SizeCase{17, 13}, SizeCase{64, 48},
-                       SizeCase{393, 293}})
-      check_table(kt, s.W, s.H, uint64_t(s.W * 1000 + s.H), &worst);
-    MESSAGE(std::string(kt->isa) << ": worst relative error l1 " << worst.l1 << ", ssim " << worst.ssim << ", gradient (of max |v|) "
-                    << worst.grad);
-  }
+GS_SIMD_TEST_CASE(loss_matches_ref, "loss kernels match the float reference") {
+  Worst worst;
+  for (SizeCase s : {SizeCase{1, 1}, SizeCase{3, 2}, SizeCase{11, 11}, SizeCase{17, 13}, SizeCase{64, 48},
+                     SizeCase{393, 293}})
+    check_table(kt, s.W, s.H, uint64_t(s.W * 1000 + s.H), &worst);
+  MESSAGE(std::string(kt->isa) << ": worst relative error l1 " << worst.l1 << ", ssim " << worst.ssim << ", gradient (of max |v|) "
+                  << worst.grad);
 }
 
-TEST_CASE("loss kernels scale the gradient by the upstream cotangent") {
+// The backward of one table is linear in the upstream cotangent.
+static void check_cotangent_scaling(const gs::simd::KernelTable* kt) {
   const int W = 9, H = 7;
   std::mt19937_64 rng(5);
   std::vector<float> image, target;
   random_pair(rng, W, H, 0.1, &image, &target);
   const LossParams p = gs::simd::make_loss_params();
   std::vector<float> scratch(gs::simd::loss_scratch_floats(W, H)), v1(image.size()), v2(image.size());
-  std::vector<const gs::simd::KernelTable*> tables = simd_tables();
-  tables.push_back(&gs::simd::ref_kernel_table());
-  for (const auto* kt : tables) {
-    const std::string isa = kt->isa;
-    CAPTURE(isa);
-    kt->loss_bwd(&p, W, H, image.data(), target.data(), 1.0, scratch.data(), v1.data(), nullptr, nullptr);
-    kt->loss_bwd(&p, W, H, image.data(), target.data(), -2.5, scratch.data(), v2.data(), nullptr, nullptr);
-    // The scaled float constants round differently and a value's terms partly cancel, so compare
-    // against the gradient's scale, not each value's.
-    double vmax = 0;
-    for (float g : v1) vmax = std::max(vmax, double(std::fabs(g)));
-    for (size_t e = 0; e < v1.size(); ++e) CHECK(std::fabs(double(v2[e]) + 2.5 * double(v1[e])) <= 1e-5 * 2.5 * vmax);
-  }
+  const std::string isa = kt->isa;
+  CAPTURE(isa);
+  kt->loss_bwd(&p, W, H, image.data(), target.data(), 1.0, scratch.data(), v1.data(), nullptr, nullptr);
+  kt->loss_bwd(&p, W, H, image.data(), target.data(), -2.5, scratch.data(), v2.data(), nullptr, nullptr);
+  // The scaled float constants round differently and a value's terms partly cancel, so compare
+  // against the gradient's scale, not each value's.
+  double vmax = 0;
+  for (float g : v1) vmax = std::max(vmax, double(std::fabs(g)));
+  for (size_t e = 0; e < v1.size(); ++e) CHECK(std::fabs(double(v2[e]) + 2.5 * double(v1[e])) <= 1e-5 * 2.5 * vmax);
+}
+
+TEST_CASE("loss kernels scale the gradient by the upstream cotangent / ref") {
+  check_cotangent_scaling(&gs::simd::ref_kernel_table());
+}
+
+GS_SIMD_TEST_CASE(loss_cotangent_scaling, "loss kernels scale the gradient by the upstream cotangent") {
+  check_cotangent_scaling(kt);
 }

@@ -13,6 +13,7 @@
 
 #include "gs/simd/kernel_table.h"
 #include "gs/simd/mlp.h"
+#include "support/simd_isa.h"
 
 namespace {
 
@@ -22,12 +23,6 @@ using gs::simd::MlpShape;
 constexpr float kCanary = -12345.0f;
 constexpr size_t kCanaryCount = 16;  // one AVX-512 register of floats after every output
 constexpr MlpAct kActs[] = {MlpAct::kNone, MlpAct::kSigmoid, MlpAct::kTanh};
-
-std::vector<const gs::simd::KernelTable*> simd_tables() {
-  const gs::simd::KernelTable* t[8];
-  const int n = gs::simd::available_simd_kernel_tables(t, 8);
-  return std::vector<const gs::simd::KernelTable*>(t, t + n);
-}
 
 // All MLP arrays of one problem, in the order x, W1, b1, W2, b2.
 template <class T>
@@ -222,9 +217,8 @@ double rel_err(const std::vector<float>& a, const std::vector<float>& b, size_t 
 // margin and still catches any wrong term or lane (O(1e-2) or more).
 constexpr double kSimdTol = 2e-5;
 
-TEST_CASE("mlp: every SIMD table matches the float reference") {
-  const auto tables = simd_tables();
-  if (tables.empty()) MESSAGE("no SIMD kernel table on this CPU: SIMD comparison skipped");
+GS_SIMD_TEST_CASE(mlp_matches_ref, "mlp: SIMD kernels match the float reference") {
+  const gs::simd::KernelTable* const tables[] = {kt};  // one ISA per case (support/simd_isa.h)
   const MlpShape shapes[] = {{36, 32, 10, MlpAct::kNone}, {36, 32, 70, MlpAct::kNone}, {5, 7, 3, MlpAct::kNone}};
   const int32_t batches[] = {1, 3, 17, 64};
   double worst_fwd = 0, worst_bwd = 0;
@@ -309,9 +303,8 @@ TEST_CASE("mlp: every SIMD table matches the float reference") {
 // bias gradients over 3301 rows, which the float reference itself accumulates row by row in
 // float: its rounding error (~sqrt(3301) * 6e-8 relative) is ~3.5e-6, the kernels' chunked sums
 // less, so 2e-5 still holds without loosening.
-TEST_CASE("mlp: every SIMD table matches the float reference on the training shapes and batch tails") {
-  const auto tables = simd_tables();
-  if (tables.empty()) MESSAGE("no SIMD kernel table on this CPU: SIMD comparison skipped");
+GS_SIMD_TEST_CASE(mlp_training_shapes, "mlp: SIMD kernels match the float reference on the training shapes and batch tails") {
+  const gs::simd::KernelTable* const tables[] = {kt};  // one ISA per case (support/simd_isa.h)
   const MlpShape shapes[] = {{52, 32, 10, MlpAct::kTanh},    {52, 32, 70, MlpAct::kNone},
                              {52, 32, 30, MlpAct::kSigmoid}, {13, 32, 16, MlpAct::kNone},
                              {36, 32, 70, MlpAct::kNone},    {52, 33, 70, MlpAct::kSigmoid},
@@ -404,9 +397,8 @@ TEST_CASE("adam: reference matches a hand-computed two-step example") {
   CHECK(param == doctest::Approx(0.8733663).epsilon(1e-7));
 }
 
-TEST_CASE("adam: every SIMD table matches the float reference") {
-  const auto tables = simd_tables();
-  if (tables.empty()) MESSAGE("no SIMD kernel table on this CPU: SIMD comparison skipped");
+GS_SIMD_TEST_CASE(adam_matches_ref, "adam: SIMD kernels match the float reference") {
+  const gs::simd::KernelTable* const tables[] = {kt};  // one ISA per case (support/simd_isa.h)
   const size_t sizes[] = {1, 7, 33, 1000};
   double worst = 0;
   for (const gs::simd::KernelTable* t : tables) {

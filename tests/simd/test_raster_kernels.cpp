@@ -12,17 +12,12 @@
 
 #include "gs/simd/kernel_table.h"
 #include "gs/simd/ref.h"
+#include "support/simd_isa.h"
 
 namespace {
 
 using gs::simd::kSplatStride;
 constexpr float kCanary = -12345.0f;
-
-std::vector<const gs::simd::KernelTable*> simd_tables() {
-  const gs::simd::KernelTable* t[8];
-  const int n = gs::simd::available_simd_kernel_tables(t, 8);
-  return std::vector<const gs::simd::KernelTable*>(t, t + n);
-}
 
 // Random splats around a tile, sorted front to back by construction (depth increasing).
 std::vector<float> random_splats(std::mt19937_64& rng, int count, float x0, float y0, float max_sigma, float min_op) {
@@ -101,82 +96,72 @@ void check_tile(const gs::simd::KernelTable* kt, int width, int height, int tx, 
 
 }  // namespace
 
-TEST_CASE("raster tile kernels match the reference across chunk and lane boundaries") {
-  const auto tables = simd_tables();
-  if (tables.empty()) {
-    MESSAGE("no SIMD kernel table on this CPU: skipped");
-    return;
-  }
-  for (const auto* kt : tables)
-    for (int count : {0, 1, 3, 15, 16, 17, 127, 128, 129, 255, 256, 300})
-      check_tile(kt, 48, 40, 1, 1, count, 3.0f, 0.05f, 1000 + uint64_t(count));
+GS_SIMD_TEST_CASE(raster_chunks, "raster tile kernels match the reference across chunk and lane boundaries") {
+  for (int count : {0, 1, 3, 15, 16, 17, 127, 128, 129, 255, 256, 300})
+    check_tile(kt, 48, 40, 1, 1, count, 3.0f, 0.05f, 1000 + uint64_t(count));
 }
 
-TEST_CASE("raster tile kernels: border tiles with partial sizes and a 1x1 image") {
-  for (const auto* kt : simd_tables()) {
-    check_tile(kt, 37, 21, 2, 1, 60, 4.0f, 0.05f, 7);   // 5x5 corner tile
-    check_tile(kt, 37, 21, 0, 1, 60, 4.0f, 0.05f, 8);   // 16x5
-    check_tile(kt, 37, 21, 2, 0, 60, 4.0f, 0.05f, 9);   // 5x16
-    check_tile(kt, 1, 1, 0, 0, 20, 2.0f, 0.05f, 10);    // 1x1
-  }
+GS_SIMD_TEST_CASE(raster_border, "raster tile kernels: border tiles with partial sizes and a 1x1 image") {
+  check_tile(kt, 37, 21, 2, 1, 60, 4.0f, 0.05f, 7);   // 5x5 corner tile
+  check_tile(kt, 37, 21, 0, 1, 60, 4.0f, 0.05f, 8);   // 16x5
+  check_tile(kt, 37, 21, 2, 0, 60, 4.0f, 0.05f, 9);   // 5x16
+  check_tile(kt, 1, 1, 0, 0, 20, 2.0f, 0.05f, 10);    // 1x1
 }
 
-TEST_CASE("raster tile kernels: saturated tiles stop early like the reference") {
-  for (const auto* kt : simd_tables()) check_tile(kt, 32, 32, 1, 0, 400, 8.0f, 0.7f, 11);
+GS_SIMD_TEST_CASE(raster_saturated, "raster tile kernels: saturated tiles stop early like the reference") {
+  check_tile(kt, 32, 32, 1, 0, 400, 8.0f, 0.7f, 11);
 }
 
-TEST_CASE("projection kernels match the reference on blocks with a tail") {
+GS_SIMD_TEST_CASE(project_tail, "projection kernels match the reference on blocks with a tail") {
   std::mt19937_64 rng(12);
   std::uniform_real_distribution<float> u(-1, 1);
-  for (const auto* kt : simd_tables()) {
-    CAPTURE(kt->isa);
-    for (size_t n : {size_t(1), size_t(7), size_t(16), size_t(33), size_t(100)}) {
-      gs::simd::ProjectParams p{};
-      const float R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-      std::memcpy(p.R, R, sizeof(R));
-      p.t[2] = 0.5f;
-      p.fx = p.fy = 50; p.cx = 31; p.cy = 20; p.width = 64; p.height = 40;
-      gs::simd::finish_project_params(&p);
-      std::vector<float> m(3 * n), s(3 * n), q(4 * n);
-      for (size_t i = 0; i < n; ++i) {
-        m[3 * i] = 2 * u(rng); m[3 * i + 1] = 1.5f * u(rng); m[3 * i + 2] = 2.5f + 2 * u(rng);  // some near/behind
-        for (int k = 0; k < 3; ++k) s[3 * i + k] = std::log(0.05f + 0.3f * (u(rng) + 1));
-        for (int k = 0; k < 4; ++k) q[4 * i + k] = u(rng) + (k == 0 ? 1.5f : 0.0f);
-      }
-      std::vector<float> m2a(2 * n + 8, kCanary), m2b(m2a), ca(3 * n + 8, kCanary), cb(ca), da(n + 8, kCanary), db(da);
-      std::vector<int32_t> ra(n + 8, -7), rb(ra);
-      gs::simd::project_fwd_ref<float>(&p, n, m.data(), s.data(), q.data(), m2a.data(), ca.data(), da.data(), ra.data());
-      kt->project_fwd(&p, n, m.data(), s.data(), q.data(), m2b.data(), cb.data(), db.data(), rb.data());
-      for (size_t i = 0; i < n; ++i) {
-        REQUIRE(ra[i] == rb[i]);
-        if (ra[i] == 0) continue;
-        for (int k = 0; k < 2; ++k) CHECK(m2b[2 * i + k] == doctest::Approx(m2a[2 * i + k]).epsilon(1e-5));
-        for (int k = 0; k < 3; ++k) CHECK(cb[3 * i + k] == doctest::Approx(ca[3 * i + k]).epsilon(1e-4).scale(std::fabs(ca[3 * i]) + std::fabs(ca[3 * i + 2])));
-        CHECK(db[i] == doctest::Approx(da[i]).epsilon(1e-6));
-      }
-      for (int k = 0; k < 8; ++k) REQUIRE(rb[n + k] == -7);
-      std::vector<float> vm2(2 * n), vc(3 * n);
-      for (float& v : vm2) v = u(rng);
-      for (float& v : vc) v = u(rng);
-      std::vector<float> a1(3 * n), a2(3 * n), a3(4 * n), b1(3 * n), b2(3 * n), b3(4 * n);
-      double pa[6] = {0}, pb[6] = {0};
-      gs::simd::project_bwd_ref<float>(&p, n, m.data(), s.data(), q.data(), ra.data(), vm2.data(), vc.data(), nullptr,
-                                       a1.data(), a2.data(), a3.data(), pa);
-      kt->project_bwd(&p, n, m.data(), s.data(), q.data(), ra.data(), vm2.data(), vc.data(), nullptr, b1.data(),
-                      b2.data(), b3.data(), pb);
-      auto close = [](const std::vector<float>& x, const std::vector<float>& y) {
-        double sc = 1e-6;
-        for (float v : x) sc = std::max(sc, double(std::fabs(v)));
-        for (size_t i = 0; i < x.size(); ++i)
-          if (std::fabs(double(x[i]) - double(y[i])) > 1e-4 * sc) return false;
-        return true;
-      };
-      CHECK(close(a1, b1));
-      CHECK(close(a2, b2));
-      CHECK(close(a3, b3));
-      double ps = 1e-6;
-      for (double v : pa) ps = std::max(ps, std::fabs(v));
-      for (int k = 0; k < 6; ++k) CHECK(std::fabs(pa[k] - pb[k]) <= 1e-4 * ps);
+  CAPTURE(kt->isa);
+  for (size_t n : {size_t(1), size_t(7), size_t(16), size_t(33), size_t(100)}) {
+    gs::simd::ProjectParams p{};
+    const float R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    std::memcpy(p.R, R, sizeof(R));
+    p.t[2] = 0.5f;
+    p.fx = p.fy = 50; p.cx = 31; p.cy = 20; p.width = 64; p.height = 40;
+    gs::simd::finish_project_params(&p);
+    std::vector<float> m(3 * n), s(3 * n), q(4 * n);
+    for (size_t i = 0; i < n; ++i) {
+      m[3 * i] = 2 * u(rng); m[3 * i + 1] = 1.5f * u(rng); m[3 * i + 2] = 2.5f + 2 * u(rng);  // some near/behind
+      for (int k = 0; k < 3; ++k) s[3 * i + k] = std::log(0.05f + 0.3f * (u(rng) + 1));
+      for (int k = 0; k < 4; ++k) q[4 * i + k] = u(rng) + (k == 0 ? 1.5f : 0.0f);
     }
+    std::vector<float> m2a(2 * n + 8, kCanary), m2b(m2a), ca(3 * n + 8, kCanary), cb(ca), da(n + 8, kCanary), db(da);
+    std::vector<int32_t> ra(n + 8, -7), rb(ra);
+    gs::simd::project_fwd_ref<float>(&p, n, m.data(), s.data(), q.data(), m2a.data(), ca.data(), da.data(), ra.data());
+    kt->project_fwd(&p, n, m.data(), s.data(), q.data(), m2b.data(), cb.data(), db.data(), rb.data());
+    for (size_t i = 0; i < n; ++i) {
+      REQUIRE(ra[i] == rb[i]);
+      if (ra[i] == 0) continue;
+      for (int k = 0; k < 2; ++k) CHECK(m2b[2 * i + k] == doctest::Approx(m2a[2 * i + k]).epsilon(1e-5));
+      for (int k = 0; k < 3; ++k) CHECK(cb[3 * i + k] == doctest::Approx(ca[3 * i + k]).epsilon(1e-4).scale(std::fabs(ca[3 * i]) + std::fabs(ca[3 * i + 2])));
+      CHECK(db[i] == doctest::Approx(da[i]).epsilon(1e-6));
+    }
+    for (int k = 0; k < 8; ++k) REQUIRE(rb[n + k] == -7);
+    std::vector<float> vm2(2 * n), vc(3 * n);
+    for (float& v : vm2) v = u(rng);
+    for (float& v : vc) v = u(rng);
+    std::vector<float> a1(3 * n), a2(3 * n), a3(4 * n), b1(3 * n), b2(3 * n), b3(4 * n);
+    double pa[6] = {0}, pb[6] = {0};
+    gs::simd::project_bwd_ref<float>(&p, n, m.data(), s.data(), q.data(), ra.data(), vm2.data(), vc.data(), nullptr,
+                                     a1.data(), a2.data(), a3.data(), pa);
+    kt->project_bwd(&p, n, m.data(), s.data(), q.data(), ra.data(), vm2.data(), vc.data(), nullptr, b1.data(),
+                    b2.data(), b3.data(), pb);
+    auto close = [](const std::vector<float>& x, const std::vector<float>& y) {
+      double sc = 1e-6;
+      for (float v : x) sc = std::max(sc, double(std::fabs(v)));
+      for (size_t i = 0; i < x.size(); ++i)
+        if (std::fabs(double(x[i]) - double(y[i])) > 1e-4 * sc) return false;
+      return true;
+    };
+    CHECK(close(a1, b1));
+    CHECK(close(a2, b2));
+    CHECK(close(a3, b3));
+    double ps = 1e-6;
+    for (double v : pa) ps = std::max(ps, std::fabs(v));
+    for (int k = 0; k < 6; ++k) CHECK(std::fabs(pa[k] - pb[k]) <= 1e-4 * ps);
   }
 }
