@@ -14,20 +14,6 @@ namespace gs::model {
 
 namespace {
 
-// 2x2 box downsampling (floor size, at least 1 px; odd edges reuse the last row / column).
-void downsample(const uint8_t* src, int w, int h, uint8_t* dst, int dw, int dh) {
-  for (int y = 0; y < dh; ++y)
-    for (int x = 0; x < dw; ++x) {
-      const int x0 = std::min(2 * x, w - 1), x1 = std::min(2 * x + 1, w - 1);
-      const int y0 = std::min(2 * y, h - 1), y1 = std::min(2 * y + 1, h - 1);
-      for (int c = 0; c < 3; ++c) {
-        const int s = src[(y0 * w + x0) * 3 + c] + src[(y0 * w + x1) * 3 + c] + src[(y1 * w + x0) * 3 + c] +
-                      src[(y1 * w + x1) * 3 + c];
-        dst[(y * dw + x) * 3 + c] = uint8_t((s + 2) / 4);
-      }
-    }
-}
-
 // Bilinear sample at continuous image coordinates (u, v) (pixel centres at +0.5), clamped to the
 // edge; returns RGB in [0, 1].
 void sample_bilinear(const uint8_t* rgb, int w, int h, double u, double v, float out[3]) {
@@ -64,7 +50,7 @@ Status ImageFeatureBank::init(const std::vector<const Camera*>& cameras, const s
       const int w = std::max(1, lv[l - 1].width / 2), h = std::max(1, lv[l - 1].height / 2);
       std::vector<uint8_t>& buf = storage_[i * (kImagePyramidLevels - 1) + size_t(l - 1)];
       buf.assign(size_t(w) * size_t(h) * 3, 0);
-      downsample(lv[l - 1].rgb, lv[l - 1].width, lv[l - 1].height, buf.data(), w, h);
+      io::box_downsample_rgb8(lv[l - 1].rgb, lv[l - 1].width, lv[l - 1].height, 2, w, h, buf.data());
       lv[l] = {w, h, buf.data()};
     }
   }
