@@ -38,11 +38,11 @@ int run_single(const RegisterArgs& args) {
   gs::jobs::RegisterImageSummary s;
   if (gs::Status st = gs::jobs::register_image(a, &s); !st.ok()) return failed(st);
   if (!s.note.empty() && !args.quiet) std::fprintf(stderr, "note: %s\n", s.note.c_str());
-  const gs::model::RegisterResult& r = s.result;
+  const gs::pose::RegisterResult& r = s.result;
   std::printf("hbgs register: %s (%dx%d) against %s\n", a.image.c_str(), s.intrinsics.width, s.intrinsics.height,
               s.source.model_path.c_str());
   std::printf("  pose (qw qx qy qz tx ty tz): %s\n", pose_text(r.pose).c_str());
-  std::printf("  verdict %s; RMSE %.4f -> %.4f, explained %.2f, coverage %.2f\n", gs::model::verdict_name(r.verdict),
+  std::printf("  verdict %s; RMSE %.4f -> %.4f, explained %.2f, coverage %.2f\n", gs::pose::verdict_name(r.verdict),
               r.initial_rmse, r.final_rmse, r.explained, r.coverage);
   std::printf("  moved %.3f deg, %.4g from --init; %d iterations over %d levels, %.1f ms (%s, downscale %d, %d threads)\n",
               s.moved_rotation_deg, s.moved_translation, r.iterations, r.levels, r.milliseconds, a.solver.c_str(), a.downscale,
@@ -57,7 +57,7 @@ int run_batch(const RegisterArgs& args) {
     if (args.quiet) return;
     std::fprintf(stderr, "[%zu/%zu] %s: rotation %.2f -> %.3f deg, translation %.3f -> %.4f r, %s, %d it, %.0f ms\n", k, n,
                  v.name.c_str(), v.initial_rotation_deg, v.rotation_deg, v.initial_translation_fraction, v.translation_fraction,
-                 gs::model::verdict_name(v.result.verdict), v.result.iterations, v.result.milliseconds);
+                 gs::pose::verdict_name(v.result.verdict), v.result.iterations, v.result.milliseconds);
   };
   gs::jobs::RegisterViewsSummary s;
   if (gs::Status st = gs::jobs::register_views(a, progress, &s); !st.ok()) return failed(st);

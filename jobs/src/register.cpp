@@ -117,11 +117,11 @@ Status dataset_camera(const std::string& dataset, int width, int height, Pinhole
 
 }  // namespace
 
-Expected<model::RegisterOptions> register_options(const RegisterRunOptions& a) {
-  model::RegisterOptions o;
-  if (a.solver == "adam") o.solver = model::RegisterOptions::kAdam;
-  else if (a.solver == "lm") o.solver = model::RegisterOptions::kGaussNewton;
-  else if (a.solver == "keyframe") o.solver = model::RegisterOptions::kKeyframe;
+Expected<pose::RegisterOptions> register_options(const RegisterRunOptions& a) {
+  pose::RegisterOptions o;
+  if (a.solver == "adam") o.solver = pose::RegisterOptions::kAdam;
+  else if (a.solver == "lm") o.solver = pose::RegisterOptions::kGaussNewton;
+  else if (a.solver == "keyframe") o.solver = pose::RegisterOptions::kKeyframe;
   else return invalid_argument("--solver: '" + a.solver + "' is not one of keyframe, lm, adam");
   if (a.downscale < 1) return invalid_argument("--downscale must be at least 1");
   if (!(a.time_budget_ms >= 0)) return invalid_argument("--time-budget-ms must be 0 or positive");
@@ -132,7 +132,7 @@ Expected<model::RegisterOptions> register_options(const RegisterRunOptions& a) {
 
 Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary) {
   RegisterImageSummary s;
-  Expected<model::RegisterOptions> ro = register_options(a);
+  Expected<pose::RegisterOptions> ro = register_options(a);
   if (!ro.ok()) return ro.status();
   if (a.image.empty()) return invalid_argument("no image to register");
   GS_RETURN_IF_ERROR(pose::parse_pose(a.init, "--init", &s.init));
@@ -161,9 +161,9 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
 
   platform::ThreadPool pool(a.threads);
   s.threads = pool.num_threads();
-  Expected<std::unique_ptr<model::Registrar>> reg = model::Registrar::create(*model, img->width, img->height, *ro, &pool);
+  Expected<std::unique_ptr<pose::Registrar>> reg = pose::Registrar::create(*model, img->width, img->height, *ro, &pool);
   if (!reg.ok()) return reg.status();
-  model::RegisterResult& r = s.result;
+  pose::RegisterResult& r = s.result;
   if (Status st = (*reg)->register_view(img->pixels.data(), K, s.init, &r); !st.ok())
     return Status(st.code(), a.image + ": " + st.message());
 
@@ -178,7 +178,7 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
                               {"pose_order", "qw qx qy qz tx ty tz (world-to-camera, COLMAP)"},
                               {"init", colmap_pose(s.init)},
                               {"pose", colmap_pose(r.pose)},
-                              {"verdict", model::verdict_name(r.verdict)},
+                              {"verdict", pose::verdict_name(r.verdict)},
                               {"converged", r.converged()},
                               {"initial_rmse", r.initial_rmse},
                               {"final_rmse", r.final_rmse},
@@ -196,7 +196,7 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
 
 Status register_views(const RegisterRunOptions& a, const std::function<void(const RegisteredView&, size_t, size_t)>& progress,
                       RegisterViewsSummary* summary) {
-  Expected<model::RegisterOptions> ro = register_options(a);
+  Expected<pose::RegisterOptions> ro = register_options(a);
   if (!ro.ok()) return ro.status();
   if (a.views != "test" && a.views != "train" && a.views != "all")
     return invalid_argument("--views: '" + a.views + "' is not one of test, train, all");
@@ -234,8 +234,8 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   RegisterViewsSummary s;
   // One registrar for every view: planned once, then allocation-free.
   platform::ThreadPool pool(a.threads);
-  Expected<std::unique_ptr<model::Registrar>> reg =
-      model::Registrar::create(*model, max_w, max_h, *ro, &pool);
+  Expected<std::unique_ptr<pose::Registrar>> reg =
+      pose::Registrar::create(*model, max_w, max_h, *ro, &pool);
   if (!reg.ok()) return reg.status();
 
   const double t0 = platform::now_seconds();
@@ -299,7 +299,7 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
                   {"translation", row.translation},
                   {"translation_fraction", row.translation / radius},
                   {"success", row.success},
-                  {"verdict", model::verdict_name(row.result.verdict)},
+                  {"verdict", pose::verdict_name(row.result.verdict)},
                   {"initial_rmse", row.result.initial_rmse},
                   {"final_rmse", row.result.final_rmse},
                   {"explained", row.result.explained},

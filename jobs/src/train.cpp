@@ -311,7 +311,7 @@ struct TrainSession::Impl {
     std::vector<const io::Image8*> images;
     for (const io::DatasetView* v : train_views) cams.push_back(v->camera), images.push_back(&v->image);
     say(text_event(TrainEvent::kStage, "aligning " + std::to_string(cams.size()) + " training poses to the SfM points..."));
-    model::PointAlignOptions pao;
+    pose::PointAlignOptions pao;
     if (options.pose_init == "sfm") {
       // When SfM placed the views within the colour objective's own precision (a median move
       // under 0.5 degrees: snowmiku_plush 0.127 -> 0.207 deg mean with it), its poses are kept;
@@ -321,9 +321,9 @@ struct TrainSession::Impl {
       pao.discard_below_median_move_deg = 0.5;
       pao.max_move_over_median = 3;
     }
-    model::PointAlignReport rep;
+    pose::PointAlignReport rep;
     const size_t npoints = dataset.points_xyz.size() / 3;
-    GS_RETURN_IF_ERROR(model::align_poses_to_points(dataset.points_xyz.data(),
+    GS_RETURN_IF_ERROR(pose::align_poses_to_points(dataset.points_xyz.data(),
                                                     dataset.points_rgb.empty() ? nullptr : dataset.points_rgb.data(), npoints,
                                                     images, &cams, pao, pool.get(), &rep));
     set_train_poses(cams);

@@ -4,8 +4,9 @@
 //
 // Layers, each using only those below it: gs/status.h, span.h, stats.h, random.h (hbgs::base);
 // gs/simd/ kernels (hbgs::simd); gs/platform/ threads, clock, files (hbgs::platform); gs/camera.h,
-// pose.h, render.h (hbgs::core); gs/io/ COLMAP, images, PLY (hbgs::io); gs/metrics/ PSNR, SSIM,
-// LPIPS (hbgs::metrics); gs/model/ the hybrid anchor model, trainer, registration (hbgs::model);
+// render.h, gs/pose/pose.h (hbgs::core); gs/io/ COLMAP, images, PLY (hbgs::io); gs/metrics/ PSNR,
+// SSIM, LPIPS (hbgs::metrics); gs/model/ the hybrid anchor model and trainer, gs/pose/register.h
+// and point_alignment.h (hbgs::model);
 // gs/capture/ cameras, video, COLMAP driver (hbgs::capture); gs/jobs/ whole jobs (hbgs::jobs).
 //
 // Lifecycle: create (validate everything, plan and allocate) -> run (allocation-free calls) ->

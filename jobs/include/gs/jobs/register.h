@@ -3,7 +3,7 @@
 // or of every view of a dataset split from starts perturbed by the seeded noise protocol, with
 // errors against the dataset poses, image metrics before and after, <out>/register.json and the
 // registered poses as a COLMAP model. For repeated registration on a device, use
-// gs::model::Registrar directly (planned once, allocation-free calls).
+// gs::pose::Registrar directly (planned once, allocation-free calls).
 #pragma once
 
 #include <cstddef>
@@ -35,13 +35,13 @@ struct RegisterRunOptions {
 };
 
 // The solver options these resolve to (errors: an unknown solver, downscale < 1).
-Expected<model::RegisterOptions> register_options(const RegisterRunOptions& options);
+Expected<pose::RegisterOptions> register_options(const RegisterRunOptions& options);
 
 struct RegisterImageSummary {
   ModelSource source;
   PinholeIntrinsics intrinsics;
   Pose init;
-  model::RegisterResult result;
+  pose::RegisterResult result;
   double moved_rotation_deg = 0, moved_translation = 0;  // from init (camera centre, world units)
   int threads = 0;
   std::string note;  // e.g. a distorted dataset camera used as a pinhole ("" : nothing to say)
@@ -54,7 +54,7 @@ struct RegisteredView {
   double rotation_deg = 0, translation = 0;                  // of the result against the dataset pose
   double initial_translation_fraction = 0, translation_fraction = 0;  // the translations / scene radius
   bool success = false;  // < 1 degree and < 1 % of the scene radius
-  model::RegisterResult result;
+  pose::RegisterResult result;
 };
 struct RegisterViewsSummary {
   ModelSource source;

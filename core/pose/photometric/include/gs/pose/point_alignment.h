@@ -61,9 +61,3 @@ Status align_poses_to_points(const float* xyz, const uint8_t* rgb, size_t n, con
 
 }  // namespace gs::pose
 
-// Transition: jobs/ still names these gs::model::...; remove once it says gs::pose::.
-namespace gs::model {
-using pose::align_poses_to_points;
-using pose::PointAlignOptions;
-using pose::PointAlignReport;
-}  // namespace gs::model

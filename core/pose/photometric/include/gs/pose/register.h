@@ -118,11 +118,3 @@ class Registrar {
 
 }  // namespace gs::pose
 
-// Transition: jobs/ and apps/hbgs still name these gs::model::...; remove once they say gs::pose::.
-namespace gs::model {
-using pose::Registrar;
-using pose::RegisterOptions;
-using pose::RegisterResult;
-using pose::RegisterVerdict;
-using pose::verdict_name;
-}  // namespace gs::model
