@@ -7,6 +7,7 @@
 #include <cmath>
 #include <string>
 
+#include "gs/bilinear.h"
 #include "gs/model/hybrid_model.h"
 #include "gs/platform/thread_pool.h"
 
@@ -14,19 +15,11 @@ namespace gs::model {
 
 namespace {
 
-// Bilinear sample at continuous image coordinates (u, v) (pixel centres at +0.5), clamped to the
-// edge; returns RGB in [0, 1].
+// Bilinear sample at (u, v) (pixel centres at +0.5), clamped to the edge; RGB in [0, 1].
 void sample_bilinear(const uint8_t* rgb, int w, int h, double u, double v, float out[3]) {
-  const double px = std::min(std::max(u - 0.5, 0.0), double(w - 1));
-  const double py = std::min(std::max(v - 0.5, 0.0), double(h - 1));
-  const int x0 = int(px), y0 = int(py);
-  const int x1 = std::min(x0 + 1, w - 1), y1 = std::min(y0 + 1, h - 1);
-  const double fx = px - x0, fy = py - y0;
-  for (int c = 0; c < 3; ++c) {
-    const double top = (1 - fx) * rgb[(y0 * w + x0) * 3 + c] + fx * rgb[(y0 * w + x1) * 3 + c];
-    const double bot = (1 - fx) * rgb[(y1 * w + x0) * 3 + c] + fx * rgb[(y1 * w + x1) * 3 + c];
-    out[c] = float(((1 - fy) * top + fy * bot) / 255.0);
-  }
+  double c[3];
+  sample_bilinear_rgb(rgb, w, h, u, v, true, c);
+  for (int k = 0; k < 3; ++k) out[k] = float(c[k] / 255.0);
 }
 
 }  // namespace

@@ -10,6 +10,8 @@
 #include <cmath>
 #include <cstddef>
 
+#include "gs/bilinear.h"
+
 namespace gs::pose::detail {
 
 // RGB float image [h, w, 3] view.
@@ -19,23 +21,9 @@ struct RgbView {
 };
 
 // Bilinear colour c and its derivatives cu, cv w.r.t. the continuous pixel position (u, v), pixel
-// centres at i + 0.5. False when the 2 x 2 neighbourhood leaves the image.
+// centres at i + 0.5. False when the 2 x 2 neighbourhood leaves the image (gs/bilinear.h).
 inline bool sample_bilinear(const RgbView& im, double u, double v, double c[3], double cu[3], double cv[3]) {
-  const double x = u - 0.5, y = v - 0.5;
-  if (!(x >= 0.0 && y >= 0.0 && x < double(im.w - 1) && y < double(im.h - 1))) return false;
-  const int x0 = int(x), y0 = int(y);
-  const double fx = x - x0, fy = y - y0;
-  const float* p00 = im.rgb + (size_t(y0) * size_t(im.w) + size_t(x0)) * 3;
-  const float* p10 = p00 + 3;
-  const float* p01 = p00 + size_t(im.w) * 3;
-  const float* p11 = p01 + 3;
-  for (int k = 0; k < 3; ++k) {
-    const double a = p00[k], b = p10[k], d = p01[k], e = p11[k];
-    c[k] = (1 - fy) * ((1 - fx) * a + fx * b) + fy * ((1 - fx) * d + fx * e);
-    cu[k] = (1 - fy) * (b - a) + fy * (e - d);
-    cv[k] = (1 - fx) * (d - a) + fx * (e - b);
-  }
-  return true;
+  return sample_bilinear_rgb(im.rgb, im.w, im.h, u, v, false, c, cu, cv);
 }
 
 // d(u, v) / d(left twist) of the projection of camera-space point m through (fx, fy):
