@@ -18,6 +18,7 @@
 #include "gs/pose/register.h"
 #include "support/alloc_counter.h"
 #include "support/model_fixtures.h"
+#include "support/reduced.h"
 
 namespace gs::model {
 namespace {
@@ -93,7 +94,7 @@ TEST_CASE("register: keyframe alignment and Gauss-Newton recover the pose from a
   opt.solver = solver;
   auto reg = pose::Registrar::create(f.model, kW, kH, opt, &pool);
   REQUIRE(reg.ok());
-  for (uint64_t seed : {1, 2, 3}) {
+  for (uint64_t seed : test::full_or_first<uint64_t>({1, 2, 3}, 1)) {
     const Pose start = f.perturbed(5, 0.05, seed);
     pose::RegisterResult r;
     REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, start, &r).ok());
@@ -138,7 +139,9 @@ TEST_CASE("register: coarse start candidates widen the keyframe basin") {
   CHECK(rot[1] < rot[0]);
 }
 
-TEST_CASE("register: Adam reduces a 3 degree error and keeps the best pose") {
+// Full size only: 3.5 s natively, about 50 s under qemu-aarch64; the Adam solver is not run under
+// emulation.
+TEST_CASE("register: Adam reduces a 3 degree error and keeps the best pose" * GS_FULL_SIZE_ONLY) {
   const Fixture& f = fixture();
   pose::RegisterOptions opt;
   opt.solver = pose::RegisterOptions::kAdam;
@@ -157,7 +160,9 @@ TEST_CASE("register: Adam reduces a 3 degree error and keeps the best pose") {
 TEST_CASE("register: the registration loop allocates nothing after set-up") {
   const Fixture& f = fixture();
   platform::ThreadPool pool(2);
-  for (pose::RegisterOptions::Solver solver : {pose::RegisterOptions::kKeyframe, pose::RegisterOptions::kGaussNewton, pose::RegisterOptions::kAdam}) {
+  // Reduced size: the default (keyframe) solver only; all three take ~30 s under qemu-aarch64.
+  for (pose::RegisterOptions::Solver solver : test::full_or_first<pose::RegisterOptions::Solver>(
+           {pose::RegisterOptions::kKeyframe, pose::RegisterOptions::kGaussNewton, pose::RegisterOptions::kAdam}, 1)) {
     pose::RegisterOptions opt;
     opt.solver = solver;
     opt.adam_iterations_per_level = 10;
