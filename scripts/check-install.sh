@@ -1,0 +1,190 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# Checks hbgs as an installed library and as .deb packages, the way a user gets it (CI runs this
+# after the native release build and the aarch64/armhf cross builds):
+#   1. cmake --install of the release build into a temporary prefix; a tiny scene (hbgs synth) and
+#      a model trained on it (hbgs train); a 3DGS PLY made from the scene's SfM points;
+#   2. examples/ built against that prefix (find_package(hbgs)) and run: render_to_png (model, PLY,
+#      SfM points), register_image, train_with_progress;
+#   3. examples/render_to_png built with plain `pkg-config --cflags --libs hbgs` and run;
+#   4. cmake --install of the aarch64 build, examples/ cross-built against it and render_to_png run
+#      under qemu-aarch64 on the same scene and model (armhf likewise under qemu-arm when built);
+#   5. cpack -G DEB in each build folder: hbgs_<version>_{amd64,arm64,armhf}.deb, copied to
+#      build/packages/; the arm64 package unpacked (dpkg-deb -x) and its hbgs render run under
+#      qemu-aarch64; the amd64 package unpacked and examples/ built against it and run.
+# Usage: scripts/check-install.sh [RELEASE_DIR [AARCH64_DIR [ARMHF_DIR]]]
+#        (defaults build/release build/aarch64 build/armhf; a missing cross folder skips its steps)
+# GS_JOBS: build parallelism (default 2). HBGS_KEEP_WORK=1 keeps the temporary folder.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+root=$PWD
+
+release=$(realpath -m "${1:-build/release}")
+aarch64=$(realpath -m "${2:-build/aarch64}")
+armhf=$(realpath -m "${3:-build/armhf}")
+jobs=${GS_JOBS:-2}
+packages=$root/build/packages
+
+work=$(mktemp -d "${TMPDIR:-/tmp}/hbgs-check-install.XXXXXX")
+if [[ "${HBGS_KEEP_WORK:-0}" == 1 ]]; then
+  echo "check-install: work folder $work (kept)"
+else
+  trap 'rm -rf "$work"' EXIT
+fi
+
+t_all=$SECONDS
+t_step=$SECONDS
+timings=()
+step() {  # step "name": closes the previous step's timing, opens the next
+  if [[ -n "${step_name:-}" ]]; then
+    timings+=("$(printf '%4d s  %s' $((SECONDS - t_step)) "$step_name")")
+  fi
+  step_name=$1
+  t_step=$SECONDS
+  [[ -n "$step_name" ]] && echo "--- check-install: $step_name"
+  return 0
+}
+fail() { echo "check-install: FAILED: $*" >&2; exit 1; }
+need_file() { for f in "$@"; do [[ -s "$f" ]] || fail "missing or empty: $f"; done; }
+
+[[ -x "$release/bin/hbgs" ]] || fail "$release/bin/hbgs is not built (build the release preset first)"
+hbgs=$release/bin/hbgs
+cross_cmake() {  # cross_cmake TRIPLE SRC BUILD PREFIX
+  cmake -S "$2" -B "$3" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+        -DCMAKE_TOOLCHAIN_FILE="$root/toolchains/$1.cmake" -DCMAKE_PREFIX_PATH="$4" >"$3.configure.log" ||
+    { cat "$3.configure.log"; fail "configuring $2 for $1"; }
+}
+
+# 1. Install, scene, model, PLY ------------------------------------------------------------------
+step "native install into a temporary prefix"
+cmake --install "$release" --prefix "$work/native" >/dev/null
+need_file "$work/native/lib/cmake/hbgs/hbgsConfig.cmake" "$work/native/lib/cmake/hbgs/hbgsConfigVersion.cmake" \
+          "$work/native/lib/cmake/hbgs/hbgsTargets.cmake" "$work/native/lib/pkgconfig/hbgs.pc" \
+          "$work/native/include/gs/hbgs.h" "$work/native/include/gs/status.h" "$work/native/lib/libgs_base.a" \
+          "$work/native/bin/hbgs"
+echo "installed: $(find "$work/native" -type f | wc -l) files, $(du -sh "$work/native" | cut -f1)"
+
+step "scene (hbgs synth 64x48, 8 views) and model (hbgs train, 500 iterations)"
+scene=$work/scene
+run=$work/run
+"$hbgs" synth --out "$scene" --width 64 --height 48 --views-arc 4 --views-orbit 4 --points 300 --seed 7 --quiet
+"$hbgs" train "$scene" --out "$run" --iterations 500 --eval-every 0 --checkpoint-every 0 --save-at "" --quiet
+need_file "$run/model.hbgs"
+# A standard 3DGS PLY (SH degree 0) of the SfM points, for render_to_png's PLY path.
+python3 - "$scene/sparse/0/points3D.txt" "$work/points.ply" <<'EOF'
+import math, struct, sys
+pts = []
+for line in open(sys.argv[1]):
+    f = line.split()
+    if f and not f[0].startswith("#"):
+        pts.append([float(v) for v in f[1:7]])
+names = "x y z nx ny nz f_dc_0 f_dc_1 f_dc_2 opacity scale_0 scale_1 scale_2 rot_0 rot_1 rot_2 rot_3".split()
+with open(sys.argv[2], "wb") as out:
+    out.write(("ply\nformat binary_little_endian 1.0\nelement vertex %d\n" % len(pts)).encode())
+    out.write("".join("property float %s\n" % n for n in names).encode() + b"end_header\n")
+    for x, y, z, r, g, b in pts:
+        dc = [(c / 255.0 - 0.5) / 0.28209479177387814 for c in (r, g, b)]
+        out.write(struct.pack("<17f", x, y, z, 0, 0, 0, *dc, math.log(0.8 / 0.2), *([math.log(0.03)] * 3), 1, 0, 0, 0))
+print("points.ply: %d Gaussians" % len(pts))
+EOF
+
+# 2. examples/ against the install (find_package) ----------------------------------------------------
+step "examples: native build against the install (find_package(hbgs))"
+cmake -S examples -B "$work/ex-native" -G Ninja -DCMAKE_PREFIX_PATH="$work/native" >"$work/ex-native.log" ||
+  { cat "$work/ex-native.log"; fail "configuring examples/ against $work/native"; }
+cmake --build "$work/ex-native" -j"$jobs"
+
+step "examples: native runs"
+ex=$work/ex-native
+"$ex/render_to_png" "$scene" "$run/model.hbgs" "$work/native_model.png" 1
+"$ex/render_to_png" "$scene" "$work/points.ply" "$work/native_ply.png" 0002.png
+"$ex/render_to_png" "$scene" points "$work/native_points.png" 3
+need_file "$work/native_model.png" "$work/native_ply.png" "$work/native_points.png"
+"$ex/register_image" "$run/model.hbgs" "$scene" 3 4 | tee "$work/register.txt"
+grep -q ": converged, pose" "$work/register.txt" || fail "register_image: no view converged"
+"$ex/train_with_progress" "$scene" "$work/run_example" 60 | tail -n 2
+need_file "$work/run_example/model.hbgs"
+
+# 3. pkg-config --------------------------------------------------------------------------------------
+step "examples: render_to_png built with pkg-config --cflags --libs hbgs"
+pc_flags=$(PKG_CONFIG_PATH="$work/native/lib/pkgconfig" pkg-config --cflags --libs hbgs)
+echo "pkg-config: $pc_flags"
+# shellcheck disable=SC2086  # the flags are a word list
+g++ -std=c++17 -O2 examples/render_to_png.cpp -o "$work/render_to_png_pc" $pc_flags
+"$work/render_to_png_pc" "$scene" "$run/model.hbgs" "$work/pc_model.png" 1
+need_file "$work/pc_model.png"
+
+# 4. Cross: examples/ against the cross installs, run under qemu ---------------------------------------
+cross_examples() {  # cross_examples BUILD_DIR TRIPLE QEMU
+  local dir=$1 triple=$2 qemu=$3 prefix=$work/$2
+  step "$triple: install, examples cross-built against it, render_to_png under $qemu"
+  cmake --install "$dir" --prefix "$prefix" >/dev/null
+  need_file "$prefix/lib/cmake/hbgs/hbgsConfig.cmake" "$prefix/bin/hbgs"
+  cross_cmake "$triple" examples "$work/ex-$triple" "$prefix"
+  cmake --build "$work/ex-$triple" -j"$jobs"
+  file "$work/ex-$triple/render_to_png" | grep -q "ARM" || fail "$work/ex-$triple/render_to_png is not an ARM binary"
+  "$qemu" -L "/usr/$triple" "$work/ex-$triple/render_to_png" "$scene" "$run/model.hbgs" "$work/$triple-model.png" 1
+  "$qemu" -L "/usr/$triple" "$work/ex-$triple/render_to_png" "$scene" "$work/points.ply" "$work/$triple-ply.png" 2
+  need_file "$work/$triple-model.png" "$work/$triple-ply.png"
+}
+if [[ -f "$aarch64/CMakeCache.txt" ]]; then
+  cross_examples "$aarch64" aarch64-linux-gnu qemu-aarch64
+else
+  echo "check-install: $aarch64 not configured, aarch64 steps skipped"
+fi
+if [[ -f "$armhf/CMakeCache.txt" ]]; then
+  cross_examples "$armhf" arm-linux-gnueabihf qemu-arm
+else
+  echo "check-install: $armhf not configured, armhf steps skipped"
+fi
+
+# 5. .deb packages -----------------------------------------------------------------------------------
+mkdir -p "$packages"
+make_deb() {  # make_deb BUILD_DIR DEB_ARCH -> prints the .deb path
+  local dir=$1 arch=$2 version deb
+  version=$(sed -n 's/^CMAKE_PROJECT_VERSION:STATIC=//p' "$dir/CMakeCache.txt")
+  deb=hbgs_${version}_${arch}.deb
+  rm -f "$dir/$deb"
+  (cd "$dir" && cpack --config CPackConfig.cmake -G DEB >cpack.log 2>&1) || { cat "$dir/cpack.log" >&2; fail "cpack in $dir"; }
+  [[ -s "$dir/$deb" ]] || fail "cpack in $dir did not make $deb"
+  [[ "$(dpkg-deb -f "$dir/$deb" Architecture)" == "$arch" ]] || fail "$deb: Architecture is not $arch"
+  cp "$dir/$deb" "$packages/"
+  echo "$packages/$deb"
+}
+step "deb: amd64 package, unpacked, examples built against it"
+deb_amd64=$(make_deb "$release" amd64)
+mkdir "$work/deb-amd64"
+dpkg-deb -x "$deb_amd64" "$work/deb-amd64"
+cmake -S examples -B "$work/ex-deb" -G Ninja -DCMAKE_PREFIX_PATH="$work/deb-amd64/usr" >"$work/ex-deb.log" ||
+  { cat "$work/ex-deb.log"; fail "configuring examples/ against the unpacked $deb_amd64"; }
+grep -q "from $work/deb-amd64/usr/lib/cmake/hbgs" "$work/ex-deb.log" || fail "examples/ did not find hbgs in the unpacked package"
+cmake --build "$work/ex-deb" -j"$jobs"
+"$work/ex-deb/render_to_png" "$scene" "$run/model.hbgs" "$work/deb_model.png" 1
+need_file "$work/deb_model.png"
+
+if [[ -f "$aarch64/CMakeCache.txt" ]]; then
+  step "deb: arm64 package, unpacked, its hbgs render under qemu-aarch64"
+  deb_arm64=$(make_deb "$aarch64" arm64)
+  mkdir "$work/deb-arm64"
+  dpkg-deb -x "$deb_arm64" "$work/deb-arm64"
+  qemu-aarch64 -L /usr/aarch64-linux-gnu "$work/deb-arm64/usr/bin/hbgs" --version
+  qemu-aarch64 -L /usr/aarch64-linux-gnu "$work/deb-arm64/usr/bin/hbgs" render "$run" --out "$work/deb-arm64-render"
+  need_file "$work/deb-arm64-render/render.json" "$work/deb-arm64-render/0000.png"
+fi
+if [[ -f "$armhf/CMakeCache.txt" ]]; then
+  step "deb: armhf package, unpacked, its hbgs render under qemu-arm"
+  deb_armhf=$(make_deb "$armhf" armhf)
+  mkdir "$work/deb-armhf"
+  dpkg-deb -x "$deb_armhf" "$work/deb-armhf"
+  qemu-arm -L /usr/arm-linux-gnueabihf "$work/deb-armhf/usr/bin/hbgs" render "$scene" --out "$work/deb-armhf-render"
+  need_file "$work/deb-armhf-render/render.json"
+fi
+step ""
+
+echo "--- check-install: packages"
+for deb in "$packages"/hbgs_*.deb; do
+  printf '%s  %s bytes  Depends: %s\n' "$deb" "$(stat -c %s "$deb")" "$(dpkg-deb -f "$deb" Depends)"
+done
+echo "--- check-install: step timings (total $((SECONDS - t_all)) s)"
+printf '%s\n' "${timings[@]}"
+echo "check-install: all checks passed"
