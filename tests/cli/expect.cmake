@@ -2,8 +2,10 @@
 # Runs one hbgs command line and checks its exit code, its output and the files it left behind.
 #   cmake -DRC=<exit code> [-DRE=<regex over stdout, then stderr>] [-DFILES=<a,b,...> must exist]
 #         [-DABSENT=<path> must not exist] [-DJSON=<render.json> -DJSON_VIEWS=<n>]
-#         [-DCLEAN=<path> removed before running] -P expect.cmake -- <program> <args...>
-set(cmd)
+#         [-DCLEAN=<path> removed before running] [-DEMULATOR=<cross emulator command, ;-list>]
+#         -P expect.cmake -- <program> <args...>
+# (The emulator comes in as a variable: cmake itself would take an emulator option such as qemu's -L.)
+set(cmd ${EMULATOR})
 set(after_dashes OFF)
 math(EXPR last "${CMAKE_ARGC} - 1")
 foreach(i RANGE 1 ${last})
