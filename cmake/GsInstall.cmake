@@ -117,6 +117,9 @@ function(gs_install_package)
     list(APPEND pc_requires libavformat libavcodec libavutil libswscale)
   endif()
   list(JOIN pc_requires " " pc_requires)
+  if(pc_requires)
+    set(pc_requires "Requires: ${pc_requires}\n")
+  endif()
   # ${pcfiledir} keeps the file relocatable (a copied prefix, an unpacked .deb).
   file(RELATIVE_PATH pc_up "/${CMAKE_INSTALL_LIBDIR}/pkgconfig" "/")
   string(REGEX REPLACE "/$" "" pc_up "${pc_up}")
@@ -128,8 +131,7 @@ includedir=\${prefix}/${CMAKE_INSTALL_INCLUDEDIR}
 Name: hbgs
 Description: Hybrid bundle-adjusting 3D Gaussian splatting on the CPU (static libraries, C++17)
 Version: ${PROJECT_VERSION}
-Requires: ${pc_requires}
-Cflags: ${pc_cflags}
+${pc_requires}Cflags: ${pc_cflags}
 Libs: ${pc_libs}
 ")
   install(FILES ${PROJECT_BINARY_DIR}/hbgs.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
