@@ -14,7 +14,7 @@
 // (std::min<T>, std::fill, std::exp(float), ...) in code that variant TUs compile: those are weak
 // symbols in namespace std, merged across ISAs like any other. They are bit-identical to what they
 // replace (same comparison as std::min / std::max; the same libm calls that <cmath> forwards to).
-// tests/simd/check_isa_symbols.cmake checks every variant object with nm.
+// tests/simd/check_isa_symbols.sh checks every variant object with nm.
 #pragma once
 #define GS_SIMD_ISA_H_INCLUDED 1
 
@@ -47,18 +47,17 @@ inline void copy(const T* first, const T* last, T* out) {
   for (; first != last; ++first, ++out) *out = *first;
 }
 
-inline float exp(float x) { return ::expf(x); }
-inline double exp(double x) { return ::exp(x); }
-inline float log(float x) { return ::logf(x); }
-inline double log(double x) { return ::log(x); }
-inline float sqrt(float x) { return ::sqrtf(x); }
-inline double sqrt(double x) { return ::sqrt(x); }
-inline float tanh(float x) { return ::tanhf(x); }
-inline double tanh(double x) { return ::tanh(x); }
-inline float floor(float x) { return ::floorf(x); }
-inline double floor(double x) { return ::floor(x); }
-inline float ceil(float x) { return ::ceilf(x); }
-inline double ceil(double x) { return ::ceil(x); }
+// The float and double forms of a one-argument libm function: name(float) calls ::namef.
+#define GS_SIMD_SCALAR_LIBM(name)                             \
+  inline float name(float x) { return ::name##f(x); }         \
+  inline double name(double x) { return ::name(x); }
+GS_SIMD_SCALAR_LIBM(exp)
+GS_SIMD_SCALAR_LIBM(log)
+GS_SIMD_SCALAR_LIBM(sqrt)
+GS_SIMD_SCALAR_LIBM(tanh)
+GS_SIMD_SCALAR_LIBM(floor)
+GS_SIMD_SCALAR_LIBM(ceil)
+#undef GS_SIMD_SCALAR_LIBM
 inline double pow(double x, double y) { return ::pow(x, y); }
 
 }  // namespace scalar
