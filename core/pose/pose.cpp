@@ -280,6 +280,17 @@ double rotation_error_deg(const Pose& a, const Pose& b) {
   return rotation_error_deg_d(Ra, Rb);
 }
 
+double relative_rotation_error_deg(const Pose& truth_a, const Pose& truth_b, const Pose& estimate_a, const Pose& estimate_b) {
+  double Ta[9], Tb[9], Ea[9], Eb[9], t[3], rel_truth[9], rel_estimate[9];
+  to_double(truth_a, Ta, t);
+  to_double(truth_b, Tb, t);
+  to_double(estimate_a, Ea, t);
+  to_double(estimate_b, Eb, t);
+  matmul_bt(Ta, Tb, rel_truth);
+  matmul_bt(Ea, Eb, rel_estimate);
+  return rotation_error_deg_d(rel_truth, rel_estimate);
+}
+
 void centre(const Pose& pose, double c[3]) {
   double R[9], t[3];
   to_double(pose, R, t);

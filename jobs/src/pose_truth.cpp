@@ -2,7 +2,13 @@
 // Pose truth, noise and errors for the jobs (see gs/jobs/pose_truth.h).
 #include "gs/jobs/pose_truth.h"
 
+#include <algorithm>
+#include <filesystem>
 #include <map>
+#include <system_error>
+
+#include "gs/platform/file.h"
+#include "gs/stats.h"
 
 #include "json_util.h"
 
@@ -80,6 +86,62 @@ Status write_posed_model(const std::string& dataset_root, const std::vector<std:
     return invalid_argument(dataset_root + "/sparse/0: " + std::to_string(names.size() - replaced) +
                                 " of the posed images are not in the COLMAP model");
   return io::write_colmap_text(*model, out_dir);
+}
+
+namespace {
+
+// A dataset root (with sparse/0) or a model folder.
+Expected<io::ColmapModel> read_model(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::exists(std::filesystem::path(path) / "sparse" / "0", ec)) return io::read_colmap_model(path + "/sparse/0");
+  return io::read_colmap_model(path);
+}
+
+}  // namespace
+
+Expected<PoseComparison> compare_pose_models(const std::string& truth_path, const std::string& estimate_path,
+                                             const std::string& json_path) {
+  Expected<io::ColmapModel> truth = read_model(truth_path), est = read_model(estimate_path);
+  if (!truth.ok()) return truth.status();
+  if (!est.ok()) return est.status();
+  PoseComparison c;
+  c.truth_images = truth->images.size();
+  c.estimate_images = est->images.size();
+  std::map<std::string, const io::ColmapImage*> by_name;
+  for (const io::ColmapImage& im : truth->images) by_name[im.name] = &im;
+  std::vector<Pose> t, e;
+  for (const io::ColmapImage& im : est->images) {
+    auto it = by_name.find(im.name);
+    if (it == by_name.end()) continue;
+    t.push_back(io::pose_from_colmap(it->second->qvec, it->second->tvec));
+    e.push_back(io::pose_from_colmap(im.qvec, im.tvec));
+    c.names.push_back(im.name);
+  }
+  if (t.size() < 3)
+    return invalid_argument("only " + std::to_string(t.size()) + " images are in both models (matched by name); at least 3 are needed");
+  double centre[3];
+  pose::scene_frame(t.data(), t.size(), centre, &c.scene_radius);
+  c.errors = pose::pose_errors(e.data(), t.data(), t.size(), c.scene_radius, true);
+  std::vector<double> relative;
+  for (size_t i = 1; i < t.size(); ++i) relative.push_back(pose::relative_rotation_error_deg(t[i - 1], t[i], e[i - 1], e[i]));
+  c.relative_rotation_mean_deg = mean(relative);
+  c.relative_rotation_max_deg = relative.empty() ? 0.0 : *std::max_element(relative.begin(), relative.end());
+  if (!json_path.empty()) {
+    const pose::PoseErrors& err = c.errors;
+    nlohmann::json j = {{"matched", t.size()},
+                        {"aligned", err.aligned},
+                        {"scale", err.scale},
+                        {"scene_radius", c.scene_radius},
+                        {"rotation_deg", {{"mean", err.rotation_mean_deg}, {"median", err.rotation_median_deg}, {"max", err.rotation_max_deg}}},
+                        {"centre", {{"mean", err.translation_mean}, {"median", err.translation_median}, {"mean_frac", err.translation_mean_frac}}},
+                        {"ate_rmse", err.ate_rmse},
+                        {"relative_rotation_deg", {{"mean", c.relative_rotation_mean_deg}, {"max", c.relative_rotation_max_deg}}},
+                        {"per_image", nlohmann::json::array()}};
+    for (size_t i = 0; i < c.names.size(); ++i)
+      j["per_image"].push_back({{"name", c.names[i]}, {"rotation_deg", err.rotation_deg[i]}, {"centre", err.translation[i]}});
+    GS_RETURN_IF_ERROR(platform::write_file_atomic(json_path, j.dump(2) + "\n"));
+  }
+  return c;
 }
 
 }  // namespace gs::jobs

@@ -350,6 +350,31 @@ TEST_CASE("centre and rotation_error_deg") {
   CHECK(std::abs(gs::pose::rotation_error_deg(pose_from(Rat, C), a) - 1e-3) < 2e-5);
 }
 
+TEST_CASE("relative_rotation_error_deg ignores a global rotation and sees a relative one") {
+  Rng rng(17);
+  const double at[3] = {0, 0, 0};
+  const gs::Pose ta = random_pose(rng, 2, at), tb = random_pose(rng, 2, at);
+  // The estimate is the truth seen from a rotated world frame: x_cam = R (G^T x) + t, so every R
+  // becomes R G^T, and R_a R_b^T is unchanged.
+  double phi[3], G[9], Ra[9], Rb[9], t[3], RaG[9], RbG[9];
+  random_phi(rng, kPi, phi);
+  gs::pose::so3_exp(phi, G);
+  pose_d(ta, Ra, t);
+  pose_d(tb, Rb, t);
+  matmul_bt(Ra, G, RaG);
+  matmul_bt(Rb, G, RbG);
+  const double C[3] = {0, 0, 0};
+  const gs::Pose ea = pose_from(RaG, C), eb = pose_from(RbG, C);
+  CHECK(gs::pose::rotation_error_deg(ea, ta) > 1.0);  // the absolute error is not zero...
+  CHECK(gs::pose::relative_rotation_error_deg(ta, tb, ea, eb) < 1e-4);  // ...the relative one is
+  // A 3-degree turn of camera b alone is a 3-degree relative error.
+  const double turn[3] = {3 * kPi / 180, 0, 0};
+  double T[9], TRbG[9];
+  gs::pose::so3_exp(turn, T);
+  matmul(T, RbG, TRbG);
+  CHECK(std::abs(gs::pose::relative_rotation_error_deg(ta, tb, ea, pose_from(TRbG, C)) - 3.0) < 1e-3);
+}
+
 TEST_CASE("pose_from_quaternion_checked accepts unit quaternions and rejects bad ones") {
   gs::Pose p;
   const double t[3] = {1, 2, 3};

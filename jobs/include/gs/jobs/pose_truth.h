@@ -33,4 +33,18 @@ pose::PoseErrors errors_for(const std::vector<Pose>& estimated, const std::vecto
 Status write_posed_model(const std::string& dataset_root, const std::vector<std::string>& names,
                          const std::vector<Pose>& poses, const std::string& out_dir);
 
+// Pose errors of one COLMAP model against another (`hbgs compare-poses`): images matched by name
+// (at least 3), the estimate Sim(3)-aligned onto the truth by camera centres, plus the relative
+// rotation between consecutive matched images, which no alignment can change. truth and estimate are
+// model folders or dataset roots (with sparse/0); json_path non-empty: also written there (atomic).
+struct PoseComparison {
+  size_t truth_images = 0, estimate_images = 0;
+  std::vector<std::string> names;  // the matched images, in the estimate's order
+  double scene_radius = 1;         // of the true camera centres
+  pose::PoseErrors errors;
+  double relative_rotation_mean_deg = 0, relative_rotation_max_deg = 0;
+};
+Expected<PoseComparison> compare_pose_models(const std::string& truth, const std::string& estimate,
+                                             const std::string& json_path = "");
+
 }  // namespace gs::jobs
