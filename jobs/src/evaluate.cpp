@@ -23,12 +23,11 @@ Status evaluate_run(const EvaluateRunOptions& a, EvaluateRunSummary* summary) {
     return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs) nor a .hbgs model file");
   if (a.split != "test" && a.split != "train" && a.split != "all")
     return invalid_argument("--split: '" + a.split + "' is not one of test, train, all");
-  Expected<ModelSource> src = resolve_model_source(a.input, a.dataset, a.max_width);
-  if (!src.ok()) return src.status();
-  Expected<model::HybridModel> model = model::load_model(src->model_path);
-  if (!model.ok()) return model.status();
-  Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(src->dataset, src->max_width, a.split);
-  if (!data.ok()) return data.status();
+  Expected<ModelViews> loaded = load_model_views(a.input, a.dataset, a.max_width, a.split);
+  if (!loaded.ok()) return loaded.status();
+  const ModelSource* src = &loaded->source;
+  const model::HybridModel* model = &loaded->model;
+  const std::unique_ptr<LoadedDataset>* data = &loaded->data;
   EvaluateRunSummary s;
   Expected<std::unique_ptr<metrics::LpipsAlex>> lpips = load_lpips(a.lpips_weights, a.threads, &s.note);
   if (!lpips.ok()) return lpips.status();

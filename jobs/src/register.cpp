@@ -206,12 +206,11 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   pose::PoseNoise noise;
   if (Status st = pose::parse_pose_noise(a.init_noise, &noise); !st.ok())
     return invalid_argument("--init-noise: " + st.message());
-  Expected<ModelSource> src = resolve_model_source(a.input, a.dataset, -1);
-  if (!src.ok()) return src.status();
-  Expected<model::HybridModel> model = model::load_model(src->model_path);
-  if (!model.ok()) return model.status();
-  Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(src->dataset, src->max_width, a.views);
-  if (!data.ok()) return data.status();
+  Expected<ModelViews> loaded = load_model_views(a.input, a.dataset, -1, a.views);
+  if (!loaded.ok()) return loaded.status();
+  const ModelSource* src = &loaded->source;
+  const model::HybridModel* model = &loaded->model;
+  const std::unique_ptr<LoadedDataset>* data = &loaded->data;
   io::Dataset& ds = (*data)->dataset;
   // True poses and the scene frame of the training cameras; the start poses are the perturbed ones.
   PoseTruth truth;

@@ -84,6 +84,17 @@ class OutputGuard {
   std::vector<fs::path> files_;
 };
 
+// render.json's entry of a view: what both inputs report (PSNR null when identical).
+nlohmann::json view_json(const RenderedView& r) {
+  return {{"name", r.name},
+          {"png", r.png},
+          {"split", r.is_test ? "test" : "train"},
+          {"width", r.width},
+          {"height", r.height},
+          {"ms", r.ms},
+          {"psnr_db", std::isfinite(r.psnr) ? nlohmann::json(r.psnr) : nlohmann::json(nullptr)}};
+}
+
 // Refuses an --out that is a file or the dataset's own images folder (PNGs would replace it).
 std::string output_problem(const std::string& out, const std::string& dataset) {
   std::error_code ec;
@@ -101,12 +112,11 @@ Status render_model(const RenderRunOptions& a, const std::function<void(const Re
   if (!a.isa.empty()) return invalid_argument("--isa applies to PLY / SfM-point rendering, not to a trained model");
   if (a.background[0] != 0 || a.background[1] != 0 || a.background[2] != 0)
     return invalid_argument("--background is not supported for a trained model");
-  Expected<ModelSource> src = resolve_model_source(a.input, a.model_dataset, a.max_width);
-  if (!src.ok()) return src.status();
-  Expected<model::HybridModel> model = model::load_model(src->model_path);
-  if (!model.ok()) return model.status();
-  Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(src->dataset, src->max_width, a.split);
-  if (!data.ok()) return data.status();
+  Expected<ModelViews> loaded = load_model_views(a.input, a.model_dataset, a.max_width, a.split);
+  if (!loaded.ok()) return loaded.status();
+  const ModelSource* src = &loaded->source;
+  const model::HybridModel* model = &loaded->model;
+  const std::unique_ptr<LoadedDataset>* data = &loaded->data;
   if (std::string err = output_problem(a.out, src->dataset); !err.empty()) return invalid_argument(err);
 
   const bool out_existed = platform::is_directory(a.out);
@@ -138,15 +148,10 @@ Status render_model(const RenderRunOptions& a, const std::function<void(const Re
     rv.ssim = m.ssim;
     rv.gaussians = m.gaussians;
     times.push_back(m.render_ms);
-    jv.push_back({{"name", rv.name},
-                  {"png", rv.png},
-                  {"split", v.is_test ? "test" : "train"},
-                  {"width", rv.width},
-                  {"height", rv.height},
-                  {"ms", rv.ms},
-                  {"psnr_db", std::isfinite(m.psnr) ? nlohmann::json(m.psnr) : nlohmann::json(nullptr)},
-                  {"ssim", m.ssim},
-                  {"gaussians", m.gaussians}});
+    nlohmann::json view = view_json(rv);
+    view["ssim"] = m.ssim;
+    view["gaussians"] = m.gaussians;
+    jv.push_back(std::move(view));
     s.views.push_back(rv);
     if (progress) progress(s.views.back(), i + 1, r->views.size());
   }
@@ -354,15 +359,10 @@ Status render_run(const RenderRunOptions& a, const std::function<void(const Rend
   nlohmann::json jv = nlohmann::json::array();
   for (size_t i = 0; i < results.size(); ++i) {
     const RenderedView& r = results[i];
-    jv.push_back({{"name", r.name},
-                  {"png", r.png},
-                  {"split", r.is_test ? "test" : "train"},
-                  {"width", r.width},
-                  {"height", r.height},
-                  {"ms", r.ms},
-                  {"psnr_db", number_or_null(r.psnr)},
-                  {"visible", r.gaussians},
-                  {"isects", isects[i]}});
+    nlohmann::json view = view_json(r);
+    view["visible"] = r.gaussians;
+    view["isects"] = isects[i];
+    jv.push_back(std::move(view));
   }
   j["views"] = std::move(jv);
   j["summary"] = {{"views", results.size()},

@@ -102,6 +102,21 @@ Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& r
   return out;
 }
 
+Expected<ModelViews> load_model_views(const std::string& input, const std::string& dataset_override, int max_width_override,
+                                      const std::string& split) {
+  ModelViews out;
+  Expected<ModelSource> src = resolve_model_source(input, dataset_override, max_width_override);
+  if (!src.ok()) return src.status();
+  out.source = std::move(src).value();
+  Expected<model::HybridModel> model = model::load_model(out.source.model_path);
+  if (!model.ok()) return model.status();
+  out.model = std::move(model).value();
+  Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(out.source.dataset, out.source.max_width, split);
+  if (!data.ok()) return data.status();
+  out.data = std::move(data).value();
+  return out;
+}
+
 std::string default_lpips_dir() {
   std::error_code ec;
   auto holds = [&](const fs::path& dir) { return fs::exists(dir / "weights.bin", ec); };

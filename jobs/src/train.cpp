@@ -444,8 +444,6 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     copt.colmap = a.colmap;
     if (Status st = capture::check_colmap(copt); !st.ok()) return Status(st.code(), "--pose-init sfm: " + st.message());
   }
-  GS_RETURN_IF_ERROR(resolve_training(a).status());
-
   Expected<std::unique_ptr<TrainSession>> created = TrainSession::create(a, say, a.out);
   if (!created.ok()) return created.status();
   TrainSession::Impl& d = *(*created)->impl_;

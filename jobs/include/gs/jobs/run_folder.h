@@ -11,6 +11,7 @@
 
 #include "gs/io/colmap.h"
 #include "gs/metrics/lpips.h"
+#include "gs/model/hybrid_model.h"
 #include "gs/status.h"
 
 namespace gs::jobs {
@@ -45,6 +46,16 @@ struct LoadedDataset {
 };
 Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& root, int max_width,
                                                              const std::string& split);
+
+// A trained model (run folder or .hbgs file, as resolve_model_source) with the views of split
+// `split` of its dataset: what evaluation, rendering and batch registration start from.
+struct ModelViews {
+  ModelSource source;
+  model::HybridModel model;
+  std::unique_ptr<LoadedDataset> data;
+};
+Expected<ModelViews> load_model_views(const std::string& input, const std::string& dataset_override, int max_width_override,
+                                      const std::string& split);
 
 // The default LPIPS-Alex weights folder: $HBGS_LPIPS_WEIGHTS when set, else the first
 // shared/data/lpips_alex (holding weights.bin) beside the current folder or beside one of the
