@@ -67,7 +67,7 @@ int run(int argc, char** argv) {
   model::Trainer& trainer = (*session)->trainer();
   platform::ThreadPool& pool = (*session)->pool();
   const std::vector<const io::DatasetView*>& views = (*session)->train_views();
-  const simd::KernelTable* kernels = o.isa.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(o.isa.c_str());
+  const simd::KernelTable* kernels = &(*session)->kernels();
   const std::string& dataset = o.dataset;
   const std::string& features = o.image_features;
 

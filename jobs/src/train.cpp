@@ -257,6 +257,7 @@ struct TrainSession::Impl {
   pose::PoseErrors input_errors;
   nlohmann::json sfm_init, point_alignment;  // stage reports for results.json
   std::unique_ptr<platform::ThreadPool> pool;
+  const simd::KernelTable* kernels = nullptr;
   std::unique_ptr<model::Trainer> trainer;
 
   pose::PoseErrors errors(const std::vector<Pose>& now, bool align) const { return errors_for(now, train_index, truth, align); }
@@ -349,6 +350,7 @@ TrainSession::TrainSession() : impl_(std::make_unique<Impl>()) {}
 TrainSession::~TrainSession() = default;
 model::Trainer& TrainSession::trainer() { return *impl_->trainer; }
 platform::ThreadPool& TrainSession::pool() { return *impl_->pool; }
+const simd::KernelTable& TrainSession::kernels() const { return *impl_->kernels; }
 const std::vector<const io::DatasetView*>& TrainSession::train_views() const { return impl_->train_views; }
 const std::vector<const io::DatasetView*>& TrainSession::test_views() const { return impl_->test_views; }
 pose::PoseErrors TrainSession::train_pose_errors(bool align) const {
@@ -393,13 +395,13 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
   if (options.optimize_poses && options.pose_init == "sfm" && !options.resume) GS_RETURN_IF_ERROR(d.init_by_sfm(work_dir, say));
   if (options.optimize_poses && options.point_align && !options.resume) GS_RETURN_IF_ERROR(d.align_to_points(say));
 
-  const simd::KernelTable* kernels = options.isa.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(options.isa.c_str());
-  if (!kernels) return invalid_argument("--isa: kernel table '" + options.isa + "' is not compiled in or not supported by this CPU");
+  d.kernels = options.isa.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(options.isa.c_str());
+  if (!d.kernels) return invalid_argument("--isa: kernel table '" + options.isa + "' is not compiled in or not supported by this CPU");
   Expected<model::HybridModel> m = model::create_model(resolved->model, d.dataset.points_xyz.data(), npoints,
                                                        model::cameras_extent(train_cameras), options.seed);
   if (!m.ok()) return m.status();
   Expected<std::unique_ptr<model::Trainer>> trainer =
-      model::Trainer::create(std::move(m).value(), d.train_views, resolved->train, d.pool.get(), kernels);
+      model::Trainer::create(std::move(m).value(), d.train_views, resolved->train, d.pool.get(), d.kernels);
   if (!trainer.ok()) return trainer.status();
   d.trainer = std::move(trainer).value();
   return session;
@@ -482,7 +484,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
   const bool have_test = !d.test_views.empty();
   if (!have_test) note("the dataset has no test views; nothing is evaluated");
   const metrics::LpipsAlex* net = lpips->get();
-  const simd::KernelTable& kernels = a.isa.empty() ? simd::best_kernel_table() : *simd::kernel_table_by_name(a.isa.c_str());
+  const simd::KernelTable& kernels = *d.kernels;
   say(text_event(TrainEvent::kStage, a.dataset + ", " + std::to_string(d.train_views.size()) + " train + " +
                                std::to_string(d.test_views.size()) + " test views, " +
                                std::to_string(d.dataset.points_xyz.size() / 3) + " points, " +

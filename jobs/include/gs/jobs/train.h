@@ -28,6 +28,7 @@
 #include "gs/status.h"
 
 namespace gs::platform { class ThreadPool; }
+namespace gs::simd { struct KernelTable; }
 
 namespace gs::jobs {
 
@@ -95,6 +96,7 @@ class TrainSession {
 
   model::Trainer& trainer();
   platform::ThreadPool& pool();
+  const simd::KernelTable& kernels() const;  // the table the trainer runs (options.isa or the best)
   const std::vector<const io::DatasetView*>& train_views() const;
   const std::vector<const io::DatasetView*>& test_views() const;
   // Sim(3)-aligned errors of the current training poses against the true (pre-noise) ones.
