@@ -72,7 +72,7 @@ class OutputGuard {
     if (committed_) return;
     std::error_code ec;
     for (const fs::path& p : files_) fs::remove(p, ec);
-    if (created_dir_) fs::remove(dir_, ec);  // only if empty
+    if (created_dir_) fs::remove_all(dir_, ec);  // made by this run: all of it is ours
   }
   void add(const fs::path& p) { files_.push_back(p); }
   void commit() { committed_ = true; }
@@ -119,16 +119,16 @@ Status render_model(const RenderRunOptions& a, const std::function<void(const Re
   const std::unique_ptr<LoadedDataset>* data = &loaded->data;
   if (std::string err = output_problem(a.out, src->dataset); !err.empty()) return invalid_argument(err);
 
+  // A failure removes what this run wrote: the whole folder when it made it, else the PNGs of its
+  // views (those it would have replaced), so no mix of old and new renders remains.
   const bool out_existed = platform::is_directory(a.out);
+  OutputGuard guard(a.out, !out_existed);
+  for (const io::DatasetView* v : (*data)->views) guard.add(fs::path(a.out) / output_name(v->name));
   platform::ThreadPool pool(a.threads);
   model::EvalOptions eo;
   eo.render_dir = a.out;
   Expected<model::EvalResult> r = model::evaluate_views(*model, (*data)->views, eo, &pool);
-  if (!r.ok()) {
-    std::error_code ec;
-    if (!out_existed) fs::remove_all(a.out, ec);
-    return r.status();
-  }
+  if (!r.ok()) return r.status();
 
   RenderRunSummary s;
   s.from_model = true;
@@ -172,6 +172,7 @@ Status render_model(const RenderRunOptions& a, const std::function<void(const Re
                   {"total_seconds", platform::now_seconds() - t0}};
   const fs::path json_path = fs::path(a.out) / "render.json";
   GS_RETURN_IF_ERROR(platform::write_file_atomic(json_path.string(), j.dump(2) + "\n"));
+  guard.commit();
   s.dataset = src->dataset;
   s.source = src->model_path;
   s.json_path = json_path.string();
