@@ -117,6 +117,8 @@ int run_train(const gs::jobs::TrainRunOptions& a, bool quiet, gs::jobs::TrainRun
                 100 * s.train_pose_final.translation_mean_frac, 100 * s.train_pose_input.translation_mean_frac,
                 a.optimize_poses ? (", refined model in " + a.out + "/refined_poses/").c_str() : "");
   std::printf("  model: %s (%.2f MB)\n", s.model_path.c_str(), double(s.model_file_bytes) / 1e6);
+  if (s.skipped_steps > 0)
+    std::printf("  %d steps skipped: their loss or gradients were NaN or infinite (see progress.json)\n", s.skipped_steps);
   if (summary) *summary = std::move(s);
   return kExitOk;
 }

@@ -13,6 +13,7 @@ const char* status_code_name(StatusCode code) {
     case StatusCode::kParseError: return "parse error";
     case StatusCode::kUnsupported: return "unsupported";
     case StatusCode::kInternal: return "internal error";
+    case StatusCode::kNumerical: return "numerical error";
   }
   return "unknown";
 }

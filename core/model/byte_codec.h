@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "../io/io_util.h"
+#include "gs/hash.h"
 #include "gs/random.h"
 #include "gs/status.h"
 
@@ -113,12 +114,7 @@ class ByteReader {
   Status status_;
 };
 
-// FNV-1a 64 over a byte range: detects corruption of model and checkpoint files.
-inline uint64_t fnv1a64(const uint8_t* p, size_t n) {
-  uint64_t h = 1469598103934665603ull;
-  for (size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 1099511628211ull;
-  return h;
-}
+using gs::fnv1a64;  // gs/hash.h: detects corruption of model and checkpoint files
 
 using SplitMix64 = gs::SplitMix64;  // gs/random.h
 

@@ -228,15 +228,42 @@ Expected<HybridModel> deserialize_model(const uint8_t* data, size_t size, const 
   // A whole file was verified up front; an embedded model (consumed != null) is verified here.
   if (consumed && checksum != detail::fnv1a64(data, body))
     return parse_error(source + ": checksum mismatch (the file is corrupt)");
-  for (float v : m.positions)
-    if (!std::isfinite(v)) return parse_error(source + ": non-finite anchor position");
+  if (Status st = check_model_finite(m, source); !st.ok()) return parse_error(st.message());
   if (consumed) *consumed = r.offset();
   else if (r.offset() != size)
     return parse_error(source + ": " + std::to_string(size - r.offset()) + " unexpected bytes after the model");
   return m;
 }
 
+Status check_model_finite(const HybridModel& m, const std::string& source) {
+  const size_t M = m.anchor_count;
+  const size_t K = size_t(m.config.k), F = size_t(m.config.feature_dim);
+  struct Rows {
+    const char* name;
+    const std::vector<float>* v;
+    size_t per_anchor;
+  };
+  const Rows rows[] = {{"anchor position", &m.positions, 3},
+                       {"offset", &m.offsets, 3 * K},
+                       {"log-scale", &m.log_scales, 6},
+                       {"anchor feature", &m.features, F},
+                       {"image feature", &m.image_raw, m.image_raw.empty() ? 0 : size_t(kImageRawDim)}};
+  for (const Rows& r : rows) {
+    const size_t n = std::min(r.v->size(), M * r.per_anchor);
+    for (size_t i = 0; i < n; ++i)
+      if (!std::isfinite((*r.v)[i]))
+        return numerical_error(source + ": non-finite " + r.name + " (anchor " + std::to_string(i / r.per_anchor) + ")");
+  }
+  static const char* const kMlpNames[kMlpCount] = {"opacity", "covariance", "colour", "image-feature"};
+  for (int k = 0; k < kMlpCount; ++k)
+    for (float v : m.mlps[k].params)
+      if (!std::isfinite(v)) return numerical_error(source + ": non-finite weight in the " + kMlpNames[k] + " MLP");
+  return Status::Ok();
+}
+
 Status save_model(const HybridModel& model, const std::string& path) {
+  if (Status st = check_model_finite(model, path); !st.ok())
+    return Status(st.code(), "refusing to write " + st.message());
   const std::vector<uint8_t> bytes = serialize_model(model);
   return platform::write_file_atomic(path, bytes.data(), bytes.size());
 }

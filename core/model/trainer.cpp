@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <numeric>
 
 #include "byte_codec.h"
@@ -98,6 +99,26 @@ struct Trainer::Impl {
   std::vector<std::pair<CellKey, uint32_t>> cand;  // [cap k] (cell, candidate index row * k + j)
   std::vector<uint8_t> pruned;                     // [cap]
   uint64_t planned_bytes = 0;
+  int nonfinite_steps = 0, nonfinite_in_a_row = 0, first_nonfinite = 0;
+
+  // True when every live gradient (and the pose twist) is finite. The exponent bits are tested
+  // as integers so that the scan vectorises (a float reduction would not, without fast-math).
+  bool gradients_finite(size_t M, const double v_pose[6]) const {
+    for (const ParamGroup& g : groups) {
+      const size_t n = g.live(M);
+      const float* p = g.grad.data();
+      uint32_t bad = 0;
+      for (size_t i = 0; i < n; ++i) {
+        uint32_t bits;
+        std::memcpy(&bits, p + i, 4);
+        bad |= uint32_t((bits & 0x7f800000u) == 0x7f800000u);
+      }
+      if (bad) return false;
+    }
+    for (int i = 0; i < 6; ++i)
+      if (!std::isfinite(v_pose[i])) return false;
+    return true;
+  }
 
   size_t cap() const { return model.capacity(); }
   int k() const { return model.config.k; }
@@ -389,6 +410,7 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   if (options.iterations < 0 || options.schedule_iterations < 1 || options.update_interval < 1 || options.update_depth < 0 ||
       options.update_hierarchy_factor < 1 || options.update_init_factor < 1)
     return invalid_argument("trainer: iteration counts and densification intervals must be positive");
+  if (options.max_nonfinite_in_a_row < 1) return invalid_argument("trainer: max_nonfinite_in_a_row must be at least 1");
   if (options.coarse_levels < 0 || options.coarse_levels > 4 || !(options.coarse_fraction >= 0 && options.coarse_fraction <= 1))
     return invalid_argument("trainer: coarse_levels must be 0-4 and coarse_fraction in [0, 1]");
   if (!(options.lr_pose_rotation_init >= 0) || !(options.lr_pose_rotation_final > 0) || !(options.lr_pose_translation_init >= 0) ||
@@ -474,9 +496,26 @@ Status Trainer::step(IterationStats* stats) {
   StepResult res;
   GS_RETURN_IF_ERROR(step_forward_backward(d.backend, p, cam, d.target.data(), d.opt.step, d.ws, &grads, &res));
   d.last_visible = res.visible_anchors;
-  if (it > d.opt.stat_start && it < d.opt.update_until) d.accumulate_stats(cam);
-  d.adam_all(it);
-  if (d.opt.optimize_poses) d.pose_adam(size_t(vi), v_pose, it);
+  if (!d.opt.test_nonfinite_iterations.empty() &&
+      std::find(d.opt.test_nonfinite_iterations.begin(), d.opt.test_nonfinite_iterations.end(), it) != d.opt.test_nonfinite_iterations.end())
+    d.groups.front().grad[0] = std::numeric_limits<float>::quiet_NaN();
+  // The numerical guard: one bad step must not write NaN into every parameter through Adam.
+  const bool finite = std::isfinite(res.loss) && d.gradients_finite(M, v_pose);
+  if (finite) {
+    d.nonfinite_in_a_row = 0;
+    if (it > d.opt.stat_start && it < d.opt.update_until) d.accumulate_stats(cam);
+    d.adam_all(it);
+    if (d.opt.optimize_poses) d.pose_adam(size_t(vi), v_pose, it);
+  } else {
+    if (d.nonfinite_in_a_row == 0) d.first_nonfinite = it;
+    ++d.nonfinite_steps;
+    if (++d.nonfinite_in_a_row >= d.opt.max_nonfinite_in_a_row)
+      return numerical_error("training diverged: the loss or gradients were NaN or infinite in " +
+                             std::to_string(d.nonfinite_in_a_row) + " steps in a row (iterations " +
+                             std::to_string(d.first_nonfinite) + "-" + std::to_string(it) + ", " +
+                             std::to_string(d.nonfinite_steps) + " such steps in all); those steps were skipped, so the "
+                             "last checkpoint holds no NaN. Lower the learning rates or check the input poses and images");
+  }
   bool adjusted = false;
   if (it > d.opt.update_from && it % d.opt.update_interval == 0 && it < d.opt.update_until) {
     d.adjust_anchors();
@@ -507,6 +546,8 @@ Status Trainer::step(IterationStats* stats) {
     stats->isects = d.renderer.stats().isects;
     stats->adjusted = adjusted;
     stats->seconds = platform::now_seconds() - t0;
+    stats->skipped_nonfinite = !finite;
+    stats->nonfinite_steps = d.nonfinite_steps;
   }
   return Status::Ok();
 }
@@ -520,6 +561,7 @@ uint64_t Trainer::planned_bytes() const { return impl_->planned_bytes; }
 
 Status Trainer::save_checkpoint(const std::string& path) const {
   const Impl& d = *impl_;
+  if (Status st = check_model_finite(d.model, path); !st.ok()) return Status(st.code(), "refusing to write " + st.message());
   detail::ByteWriter w;
   w.raw(kCheckpointMagic, 8);
   w.u32(kCheckpointVersion);

@@ -19,6 +19,7 @@
 #include "gs/capture/sfm_pose_init.h"
 #include "gs/jobs/pose_truth.h"
 #include "gs/jobs/run_folder.h"
+#include "gs/jobs/run_state.h"
 #include "gs/pose/point_alignment.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
@@ -40,6 +41,7 @@ struct Progress {
   std::vector<PsnrRow> rows;
   std::vector<float> iteration_ms;  // one per iteration, in order
   std::vector<float> losses;        // the training loss of every iteration, in order
+  int skipped_steps = 0;            // steps the numerical guard skipped (non-finite loss or gradient)
 };
 
 Expected<std::vector<int>> parse_save_at(const std::string& text) {
@@ -77,7 +79,7 @@ Status write_psnr_files(const std::string& run, const std::vector<PsnrRow>& rows
   return platform::write_file_atomic((fs::path(run) / kPsnrSvg).string(), psnr_svg(rows, title));
 }
 
-Status save_progress(const std::string& run, const Progress& p) {
+Status save_progress_to(const std::string& path, const Progress& p) {
   nlohmann::json j;
   j["iteration"] = p.iteration;
   j["train_seconds"] = p.train_seconds;
@@ -86,7 +88,8 @@ Status save_progress(const std::string& run, const Progress& p) {
   j["psnr_rows"] = std::move(rows);
   j["iteration_ms"] = p.iteration_ms;
   j["losses"] = p.losses;
-  return platform::write_file_atomic((fs::path(run) / kProgressFile).string(), j.dump() + "\n");
+  j["skipped_steps"] = p.skipped_steps;
+  return platform::write_file_atomic(path, j.dump() + "\n");
 }
 
 // Progress at checkpoint iteration `at`. progress.json is written right after checkpoint.bin, so a
@@ -108,6 +111,7 @@ Progress load_progress(const std::string& run, int at, const std::function<void(
   p.iteration_ms = j.value("iteration_ms", std::vector<float>());
   if (p.iteration_ms.size() > size_t(at)) p.iteration_ms.resize(size_t(at));
   p.losses = j.value("losses", std::vector<float>());
+  p.skipped_steps = j.value("skipped_steps", 0);
   if (p.losses.size() > size_t(at)) p.losses.resize(size_t(at));
   if (saved != at) {
     const double ms = median(std::vector<double>(p.iteration_ms.begin(), p.iteration_ms.end()));
@@ -134,47 +138,70 @@ std::vector<fs::path> run_outputs(const std::string& run) {
   return out;
 }
 
+// Every option run.json records that a resume reads back: model options (the checkpoint holds a
+// model and poses built with them, so a resume may not change them) and the others.
+template <class Visit>
+void for_each_recorded_option(TrainRunOptions* a, Visit&& visit) {
+  visit("image-features", &a->image_features, true);
+  visit("max-anchors", &a->max_anchors, true);
+  visit("max-gaussians", &a->max_gaussians, true);
+  visit("voxel-size", &a->voxel_size, true);
+  visit("seed", &a->seed, true);
+  visit("pose-noise", &a->pose_noise, true);
+  visit("pose-noise-on", &a->pose_noise_on, true);
+  visit("optimize-poses", &a->optimize_poses, true);
+  visit("coarse-levels", &a->coarse_levels, true);
+  visit("feature-refresh", &a->feature_refresh, true);
+  visit("pose-lr", &a->pose_lr, true);
+  visit("point-align", &a->point_align, true);
+  visit("register-passes", &a->register_passes, true);
+  visit("pose-init", &a->pose_init, true);
+  visit("sfm-images", &a->sfm_images, true);
+  visit("max-width", &a->max_width, true);
+  visit("iterations", &a->iterations, false);
+  visit("checkpoint-every", &a->checkpoint_every, false);
+  visit("eval-every", &a->eval_every, false);
+  visit("save-at", &a->save_at, false);
+  visit("lpips-weights", &a->lpips_weights, false);
+}
+
+// The model options as JSON text (the run manifest records them beside the checkpoint).
+std::string model_options_json(TrainRunOptions a) {
+  nlohmann::json j = nlohmann::json::object();
+  for_each_recorded_option(&a, [&](const char* key, auto* field, bool model_option) {
+    if (model_option) j[key] = *field;
+  });
+  return j.dump();
+}
+
 // With resume, options not given explicitly come from run.json; model options given must match it
 // (the checkpoint holds a model built with them).
 Status apply_recorded_options(const std::string& run, TrainRunOptions* a) {
   Expected<std::string> text = platform::read_text_file((fs::path(run) / kRunJson).string());
   if (!text.ok()) return text.status();
   const nlohmann::json j = nlohmann::json::parse(*text, nullptr, false);
-  if (!j.is_object() || !j.contains("options")) return parse_error(run + "/" + kRunJson + ": not a hbgs run file");
+  if (!j.is_object() || !j.contains("options") || !j["options"].is_object())
+    return parse_error(run + "/" + kRunJson + ": not a hbgs run file");
   const std::string recorded = j.value("dataset", std::string());
   if (recorded != absolute_path(a->dataset))
     return invalid_argument("the run in " + run + " was trained on " + recorded + ", not " + absolute_path(a->dataset));
   const nlohmann::json& o = j["options"];
   const std::set<std::string> given(a->given.begin(), a->given.end());
-  std::string conflicts;
-  auto take = [&](const char* key, auto* field, bool model_option) {
+  std::string conflicts, unreadable;
+  for_each_recorded_option(a, [&](const char* key, auto* field, bool model_option) {
     using T = std::decay_t<decltype(*field)>;
     if (!o.contains(key)) return;
-    const T value = o[key].get<T>();
+    T value{};
+    try {
+      value = o[key].get<T>();
+    } catch (const nlohmann::json::exception&) {
+      unreadable += std::string(unreadable.empty() ? "" : ", ") + key;
+      return;
+    }
     if (!given.count(key)) *field = value;
     else if (model_option && !(value == *field)) conflicts += std::string(conflicts.empty() ? "" : ", ") + "--" + key;
-  };
-  take("image-features", &a->image_features, true);
-  take("max-anchors", &a->max_anchors, true);
-  take("max-gaussians", &a->max_gaussians, true);
-  take("voxel-size", &a->voxel_size, true);
-  take("seed", &a->seed, true);
-  take("pose-noise", &a->pose_noise, true);
-  take("pose-noise-on", &a->pose_noise_on, true);
-  take("optimize-poses", &a->optimize_poses, true);
-  take("coarse-levels", &a->coarse_levels, true);
-  take("feature-refresh", &a->feature_refresh, true);
-  take("pose-lr", &a->pose_lr, true);
-  take("point-align", &a->point_align, true);
-  take("register-passes", &a->register_passes, true);
-  take("pose-init", &a->pose_init, true);
-  take("sfm-images", &a->sfm_images, true);
-  take("max-width", &a->max_width, true);
-  take("iterations", &a->iterations, false);
-  take("checkpoint-every", &a->checkpoint_every, false);
-  take("eval-every", &a->eval_every, false);
-  take("save-at", &a->save_at, false);
-  take("lpips-weights", &a->lpips_weights, false);
+  });
+  if (!unreadable.empty()) return parse_error(run + "/" + kRunJson + ": option(s) " + unreadable + " have the wrong type");
   if (!conflicts.empty())
     return invalid_argument(conflicts + " differ from the run being resumed (see " + run + "/" + kRunJson + ")");
   return Status::Ok();
@@ -416,23 +443,71 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
   const TrainProgressFn say = progress ? progress : [](const TrainEvent&) {};
   auto note = [&](const std::string& m) { say(text_event(TrainEvent::kNote, m)); };
 
-  // 1. Everything that can be wrong with the inputs is checked before the run folder is touched.
+  // 1. Everything that can be wrong with the arguments is checked before the run folder is touched.
   TrainRunOptions a = options;
   std::error_code ec;
   if (a.out.empty()) return invalid_argument("no run folder given (--out)");
   if (!platform::is_directory(a.dataset)) return invalid_argument("dataset folder " + a.dataset + " not found");
   if (a.resume && a.force) return invalid_argument("--resume and --force contradict each other; choose one");
   if (fs::exists(a.out, ec) && !fs::is_directory(a.out, ec)) return invalid_argument("output " + a.out + " is not a directory");
+  // PENDING(helper paths): GS_RETURN_IF_ERROR(check_output_outside_dataset(a.out, a.dataset));
+
+  // 2. The run folder: created if new (and removed again when the run fails before training starts),
+  // locked against a second writer, and brought to its last committed state.
+  const bool created = !fs::exists(a.out, ec);
+  GS_RETURN_IF_ERROR(platform::make_dirs(a.out));
+  Expected<platform::FileLock> lock = lock_run_folder(a.out);
+  if (!lock.ok()) {
+    if (created) fs::remove_all(a.out, ec);
+    return lock.status();
+  }
+  bool training_started = false;
+  struct RemoveIfUnstarted {
+    const std::string& dir;
+    const bool& created;
+    const bool& started;
+    ~RemoveIfUnstarted() {
+      std::error_code ignored;
+      if (created && !started) fs::remove_all(dir, ignored);
+    }
+  } cleanup{a.out, created, training_started};
+
+  Expected<RunState> state = recover_run_state(a.out);
+  if (!state.ok()) return Status(state.status().code(), (a.resume ? "--resume: " : "") + state.status().message());
+  for (const std::string& n : state->notes) note(n);
   const std::string ckpt = (fs::path(a.out) / kCheckpointFile).string();
-  const std::vector<fs::path> previous = fs::is_directory(a.out, ec) ? run_outputs(a.out) : std::vector<fs::path>();
+  const bool have_run_json = platform::file_exists((fs::path(a.out) / kRunJson).string());
+  const bool legacy_checkpoint = !state->committed && platform::file_exists(ckpt);  // a run from before manifests
+  bool from_checkpoint = false;
   if (a.resume) {
-    if (!platform::file_exists(ckpt)) return invalid_argument("nothing to resume: " + ckpt + " not found");
+    if (!have_run_json) return invalid_argument("nothing to resume: " + a.out + " holds no run (" + kRunJson + " not found)");
     if (Status st = apply_recorded_options(a.out, &a); !st.ok()) return Status(st.code(), "--resume: " + st.message());
-    // A run killed while writing leaves its atomic-write temporaries ("<file>.tmp.<pid>"); the
-    // real files are intact (renamed only when complete), so the leftovers are simply removed.
-    for (const fs::directory_entry& e : fs::directory_iterator(a.out, ec))
-      if (e.path().filename().string().find(".tmp.") != std::string::npos) fs::remove(e.path(), ec);
-  } else if (!previous.empty() && !a.force) {
+    if (state->committed) {
+      if (state->dataset != absolute_path(a.dataset))
+        return invalid_argument("--resume: " + a.out + "/" + kManifestFile + " says the checkpoint was trained on " + state->dataset +
+                                ", not " + absolute_path(a.dataset));
+      if (state->model_options != model_options_json(a))
+        return invalid_argument("--resume: the checkpoint in " + a.out + " was made with other model options than " + kRunJson +
+                                " records (checkpoint: " + state->model_options + "; run.json: " + model_options_json(a) +
+                                "); was it copied from another run? Start over with --force");
+      from_checkpoint = true;
+    } else if (legacy_checkpoint) {
+      note(ckpt + " has no " + kManifestFile + " beside it (a run from an older hbgs): resuming it as it is");
+      from_checkpoint = true;
+    } else {
+      // Failed or killed before its first checkpoint: nothing to continue, so it restarts with the
+      // options it recorded.
+      note(a.out + " has no checkpoint yet (the run stopped before its first one): restarting it from iteration 0 with the options in " +
+           kRunJson);
+      a.force = true;
+    }
+    a.resume = from_checkpoint;
+  }
+  const std::vector<fs::path> previous = run_outputs(a.out);
+  if (!a.resume && !previous.empty() && !a.force) {
+    if (have_run_json && !state->committed && !legacy_checkpoint)
+      return invalid_argument(a.out + " holds a run that stopped before its first checkpoint; pass --resume to restart it with its "
+                              "recorded options or --force to replace it");
     return invalid_argument(a.out + " already holds a run (" + previous.front().string() +
                             " exists); pass --force to overwrite it or --resume to continue it");
   }
@@ -446,13 +521,21 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     copt.colmap = a.colmap;
     if (Status st = capture::check_colmap(copt); !st.ok()) return Status(st.code(), "--pose-init sfm: " + st.message());
   }
-  Expected<std::unique_ptr<TrainSession>> created = TrainSession::create(a, say, a.out);
-  if (!created.ok()) return created.status();
-  TrainSession::Impl& d = *(*created)->impl_;
+  Expected<std::unique_ptr<TrainSession>> created_session = TrainSession::create(a, say, a.out);
+  if (!created_session.ok()) return created_session.status();
+  TrainSession::Impl& d = *(*created_session)->impl_;
   model::Trainer& trainer = *d.trainer;
   platform::ThreadPool& pool = *d.pool;
-  if (a.resume)
+  if (a.resume) {
     if (Status st = trainer.load_checkpoint(ckpt); !st.ok()) return Status(st.code(), "cannot resume from " + ckpt + ": " + st.message());
+    if (state->committed && trainer.iteration() != state->iteration)
+      return parse_error(ckpt + " is at iteration " + std::to_string(trainer.iteration()) + " but " + kManifestFile + " says " +
+                         std::to_string(state->iteration));
+    if (a.iterations < trainer.iteration())
+      return invalid_argument("--iterations " + std::to_string(a.iterations) + " is below the checkpoint's iteration " +
+                              std::to_string(trainer.iteration()) + ": a resumed run can only continue (the models it saved on "
+                              "the way are model_<iteration>.hbgs)");
+  }
   std::string lpips_note;
   Expected<std::unique_ptr<metrics::LpipsAlex>> lpips = load_lpips(a.lpips_weights, a.threads, &lpips_note);
   if (!lpips.ok()) return lpips.status();
@@ -471,12 +554,12 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
                           {"train_final_unaligned", pose_errors_json(d.errors(now, false), false)}};
   };
 
-  // 2. The run folder.
+  // 3. Start: clear a replaced run, record the options.
   if (a.force)
     for (const fs::path& p : previous)
       if (fs::remove_all(p, ec), ec) return io_error("cannot remove " + p.string() + ": " + ec.message());
-  GS_RETURN_IF_ERROR(platform::make_dirs(a.out));
   GS_RETURN_IF_ERROR(platform::write_file_atomic((fs::path(a.out) / kRunJson).string(), run_json(a)));
+  training_started = true;
 
   const std::string title = "Test PSNR vs training time: " + fs::path(absolute_path(a.dataset)).filename().string();
   Progress prog = a.resume ? load_progress(a.out, trainer.iteration(), note) : Progress{};
@@ -485,31 +568,34 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
   if (!have_test) note("the dataset has no test views; nothing is evaluated");
   const metrics::LpipsAlex* net = lpips->get();
   const simd::KernelTable& kernels = *d.kernels;
+  const std::string dataset_abs = absolute_path(a.dataset), model_options = model_options_json(a);
   say(text_event(TrainEvent::kStage, a.dataset + ", " + std::to_string(d.train_views.size()) + " train + " +
                                std::to_string(d.test_views.size()) + " test views, " +
                                std::to_string(d.dataset.points_xyz.size() / 3) + " points, " +
                                std::to_string(trainer.model().anchor_count) + " anchors, image features " + a.image_features +
                                ", ISA " + kernels.isa + ", " + std::to_string(pool.num_threads()) + " threads" +
                                (a.resume ? ", resuming at iteration " + std::to_string(trainer.iteration()) : "")));
+  // The PSNR files are derived from progress; after a resume they show the committed rows only.
+  if (a.resume) GS_RETURN_IF_ERROR(write_psnr_files(a.out, prog.rows, title));
 
   model::EvalResult final_eval;
-  auto record_psnr = [&](int it, double psnr) -> Status {
+  auto add_psnr_row = [&](int it, double psnr) {
     prog.rows.erase(std::remove_if(prog.rows.begin(), prog.rows.end(), [it](const PsnrRow& r) { return r.iteration >= it; }),
                     prog.rows.end());
     prog.rows.push_back({it, prog.train_seconds, psnr});
-    return write_psnr_files(a.out, prog.rows, title);
   };
   auto quick_psnr = [&](int it) -> Status {
     model::EvalOptions quick;
     quick.psnr_only = true;
     Expected<model::EvalResult> r = model::evaluate_views(trainer.model(), d.test_views, quick, &pool);
-    return r.ok() ? record_psnr(it, r->psnr) : r.status();
+    if (!r.ok()) return r.status();
+    add_psnr_row(it, r->psnr);
+    return Status::Ok();
   };
-  // Saves the model as model_file, evaluates every test view fully (PNGs, SSIM, LPIPS) and merges
-  // the figures as "ours_<it>" into results.json / per_view.json.
-  auto full_eval = [&](int it, const std::string& model_file) -> Status {
+  // Evaluates every test view fully (PNGs, SSIM, LPIPS) and merges the figures as "ours_<it>" into
+  // results.json / per_view.json.
+  auto full_eval = [&](int it) -> Status {
     const model::HybridModel& m = trainer.model();
-    GS_RETURN_IF_ERROR(model::save_model(m, model_file));
     if (!have_test) return Status::Ok();
     const std::string method = "ours_" + std::to_string(it);
     model::EvalOptions eo;
@@ -524,7 +610,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
         {"train_seconds", prog.train_seconds},
         {"median_iteration_ms", median(std::vector<double>(prog.iteration_ms.begin(), prog.iteration_ms.end()))},
         {"model_bytes", m.file_bytes()},
-        {"model_file_bytes", file_size_or_zero(model_file)},
+        {"model_file_bytes", m.file_bytes()},  // what model.hbgs holds once this iteration is committed
         {"anchors", m.anchor_count},
         {"mean_gaussians_per_view", gaussians / double(r->views.size())},
         {"render_ms_median", r->render_ms_median},
@@ -538,25 +624,38 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     std::string merge_note;
     GS_RETURN_IF_ERROR(write_eval_files(a.out, method, *r, extra, &merge_note));
     if (!merge_note.empty()) note(merge_note);
-    if (a.eval_every > 0) GS_RETURN_IF_ERROR(record_psnr(it, r->psnr));
+    if (a.eval_every > 0) add_psnr_row(it, r->psnr);
     final_eval = std::move(r).value();
     return Status::Ok();
   };
-  // model_<it>.hbgs at the save_at iterations, model.hbgs otherwise (the final one).
-  auto model_file_for = [&](int it) {
-    const bool listed = std::binary_search(save_at->begin(), save_at->end(), it);
-    return (fs::path(a.out) / (listed ? "model_" + std::to_string(it) + ".hbgs" : std::string(kModelFile))).string();
-  };
-  auto checkpoint = [&]() -> Status {
-    GS_RETURN_IF_ERROR(trainer.save_checkpoint(ckpt));
-    prog.iteration = trainer.iteration();
-    return save_progress(a.out, prog);
+  auto listed = [&](int it) { return std::binary_search(save_at->begin(), save_at->end(), it); };
+  const std::string model_path = (fs::path(a.out) / kModelFile).string();
+  // Saves the training state at the current iteration as one commit (gs/jobs/run_state.h): the
+  // model, checkpoint and progress under ".next" names, then the manifest, then the renames. The
+  // save_at snapshots model_<it>.hbgs are separate files outside the state.
+  auto commit = [&]() -> Status {
+    const int it = trainer.iteration();
+    if (listed(it)) GS_RETURN_IF_ERROR(model::save_model(trainer.model(), (fs::path(a.out) / ("model_" + std::to_string(it) + ".hbgs")).string()));
+    auto next = [&](const char* name) { return (fs::path(a.out) / (std::string(name) + kNextSuffix)).string(); };
+    prog.iteration = it;
+    Status st = model::save_model(trainer.model(), next(kModelFile));
+    if (st.ok()) st = trainer.save_checkpoint(next(kCheckpointFile));
+    if (st.ok()) st = save_progress_to(next(kProgressFile), prog);
+    if (!st.ok()) {
+      for (const char* n : {kModelFile, kCheckpointFile, kProgressFile}) fs::remove(next(n), ec);
+      return st;
+    }
+    return commit_run_state(a.out, it, dataset_abs, model_options, {kModelFile, kCheckpointFile, kProgressFile});
   };
   auto at_iteration = [](int it, const Status& st) { return Status(st.code(), "iteration " + std::to_string(it) + ": " + st.message()); };
 
-  // 3. Train.
-  if (!a.resume && a.eval_every > 0 && have_test)
-    if (Status st = quick_psnr(0); !st.ok()) return Status(st.code(), "evaluation at iteration 0: " + st.message());
+  // 4. Train. Order per iteration: step, evaluations (renders and results), the commit, then the
+  // PSNR files derived from the committed progress.
+  if (!a.resume && a.eval_every > 0 && have_test) {
+    Status st = quick_psnr(0);
+    if (st.ok()) st = write_psnr_files(a.out, prog.rows, title);
+    if (!st.ok()) return Status(st.code(), "evaluation at iteration 0: " + st.message());
+  }
   int last_full = -1;
   for (int it = trainer.iteration() + 1; it <= a.iterations; ++it) {
     model::IterationStats stats;
@@ -566,6 +665,11 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     prog.train_seconds += dt;
     prog.iteration_ms.push_back(float(1e3 * dt));
     prog.losses.push_back(float(stats.step.loss));
+    if (stats.skipped_nonfinite) {
+      ++prog.skipped_steps;
+      note("iteration " + std::to_string(it) + ": the loss or a gradient was NaN or infinite; the step was skipped (" +
+           std::to_string(prog.skipped_steps) + " so far)");
+    }
     TrainEvent ev;
     ev.kind = TrainEvent::kIteration;
     ev.iteration = it;
@@ -573,10 +677,12 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     ev.stats = &stats;
     say(ev);
 
-    const bool full = it == a.iterations || std::binary_search(save_at->begin(), save_at->end(), it);
+    const bool full = it == a.iterations || listed(it);
+    const bool quick = !full && a.eval_every > 0 && have_test && it % a.eval_every == 0;
+    const bool save = full || (a.checkpoint_every > 0 && it % a.checkpoint_every == 0);
     Status out_st;
     if (full) {
-      out_st = full_eval(it, model_file_for(it));
+      out_st = full_eval(it);
       last_full = it;
     }
     if (a.optimize_poses && a.eval_every > 0 && it % a.eval_every == 0) {
@@ -587,16 +693,15 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
       pe.pose_errors = d.errors(poses_of(trainer.cameras()), true);
       say(pe);
     }
-    if (out_st.ok() && !full && a.eval_every > 0 && have_test && it % a.eval_every == 0) out_st = quick_psnr(it);
-    if (out_st.ok() && (it == a.iterations || (a.checkpoint_every > 0 && it % a.checkpoint_every == 0))) out_st = checkpoint();
+    if (out_st.ok() && quick) out_st = quick_psnr(it);
+    if (out_st.ok() && save) out_st = commit();
+    if (out_st.ok() && (quick || (full && a.eval_every > 0 && have_test))) out_st = write_psnr_files(a.out, prog.rows, title);
     if (!out_st.ok()) return at_iteration(it, out_st);
   }
 
-  // 4. The final model (and its evaluation when this session did not run the last iteration).
+  // 5. Resuming a finished run evaluates its final model again (the summary needs it).
   const int final_it = trainer.iteration();
-  const std::string model_path = (fs::path(a.out) / kModelFile).string();
-  if (last_full != final_it) GS_RETURN_IF_ERROR(full_eval(final_it, model_file_for(final_it)));
-  if (model_file_for(final_it) != model_path) GS_RETURN_IF_ERROR(model::save_model(trainer.model(), model_path));
+  if (last_full != final_it) GS_RETURN_IF_ERROR(full_eval(final_it));
   if (a.optimize_poses)
     GS_RETURN_IF_ERROR(write_posed_model(a.dataset, d.train_names, poses_of(trainer.cameras()),
                                          (fs::path(a.out) / "refined_poses").string()));
@@ -614,6 +719,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
   s.final_eval = final_eval;
   s.train_seconds = prog.train_seconds;
   s.median_iteration_ms = median(std::vector<double>(prog.iteration_ms.begin(), prog.iteration_ms.end()));
+  s.skipped_steps = prog.skipped_steps;
   s.anchors = trainer.model().anchor_count;
   s.train_views = d.train_views.size();
   s.test_views = d.test_views.size();

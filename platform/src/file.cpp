@@ -5,10 +5,13 @@
 #include "gs/platform/file.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <system_error>
@@ -91,6 +94,11 @@ Status read_whole(const std::string& path, uint64_t max_bytes, Buffer& buf) {
   return Status::Ok();
 }
 
+// Fault injection state (inject_write_fault): the armed call number (0: none) and the call count.
+std::atomic<uint64_t> g_fault_at{0};
+std::atomic<int> g_fault_kind{0};
+std::atomic<uint64_t> g_write_calls{0};
+
 std::string parent_dir(const std::string& path) {
   size_t slash = path.find_last_of('/');
   if (slash == std::string::npos) return ".";
@@ -133,10 +141,18 @@ Status write_file_atomic(const std::string& path, const void* data, size_t size)
     return io_error("cannot write " + quoted(path) + ": cannot create temporary file " + quoted(tmp) + ": " +
                     errno_text(err));
   }
+  const uint64_t call = g_write_calls.fetch_add(1) + 1;
+  const bool injected = call == g_fault_at.load();
+  const auto fault = static_cast<WriteFault>(g_fault_kind.load());
   const char* p = static_cast<const char*>(data);
   size_t left = size;
-  while (left > 0) {
-    ssize_t w = ::write(fd.get(), p, left);
+  // An injected short write lets half of the bytes through, as a disk filling up mid-file does.
+  size_t fail_after = injected && fault == WriteFault::kShortWrite ? size / 2 : SIZE_MAX;
+  if (injected && fault == WriteFault::kNoSpace) fail_after = 0;
+  while (left > 0 || fail_after == 0) {
+    if (size - left >= fail_after) return fail("write to " + quoted(tmp) + " failed", ENOSPC);
+    const size_t chunk = fail_after == SIZE_MAX ? left : std::min(left, fail_after - (size - left));
+    ssize_t w = ::write(fd.get(), p, chunk);
     if (w < 0) {
       if (errno == EINTR) continue;
       return fail("write to " + quoted(tmp) + " failed", errno);
@@ -145,6 +161,7 @@ Status write_file_atomic(const std::string& path, const void* data, size_t size)
     left -= static_cast<size_t>(w);
   }
   // fsync before rename: otherwise a crash can leave the new name pointing at an empty file.
+  if (injected && fault == WriteFault::kIoError) return fail("fsync of " + quoted(tmp) + " failed", EIO);
   if (::fsync(fd.get()) != 0) return fail("fsync of " + quoted(tmp) + " failed", errno);
   // close() can report deferred write errors (NFS); never retry it, the fd is gone either way.
   if (::close(fd.release()) != 0) return fail("close of " + quoted(tmp) + " failed", errno);
@@ -197,6 +214,55 @@ bool file_exists(const std::string& path) {
 bool is_directory(const std::string& path) {
   struct stat st;
   return ::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+void inject_write_fault(uint64_t k, WriteFault kind) {
+  g_fault_kind.store(static_cast<int>(kind));
+  g_write_calls.store(0);
+  g_fault_at.store(k);
+}
+
+uint64_t write_file_atomic_calls() { return g_write_calls.load(); }
+
+Expected<FileLock> FileLock::acquire(const std::string& lock_path, const std::string& what) {
+  const int fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+  if (fd < 0) {
+    int err = errno;
+    return io_error("cannot lock " + what + ": cannot open " + quoted(lock_path) + ": " + errno_text(err));
+  }
+  Fd guard(fd);
+  for (;;) {
+    if (::flock(fd, LOCK_EX | LOCK_NB) == 0) break;
+    const int err = errno;
+    if (err == EINTR) continue;
+    if (err != EWOULDBLOCK) return io_error("cannot lock " + what + ": flock " + quoted(lock_path) + ": " + errno_text(err));
+    char buf[32] = {};
+    const ssize_t n = ::pread(fd, buf, sizeof(buf) - 1, 0);
+    std::string pid = n > 0 ? std::string(buf, size_t(n)) : std::string();
+    while (!pid.empty() && (pid.back() == '\n' || pid.back() == ' ')) pid.pop_back();
+    return io_error(what + " is in use by another hbgs process" + (pid.empty() ? std::string() : " (pid " + pid + ")") +
+                    "; wait for it to finish or use another folder (lock: " + quoted(lock_path) + ")");
+  }
+  // Best effort: the pid is only for the message above.
+  const std::string pid = std::to_string(static_cast<long>(::getpid())) + "\n";
+  if (::ftruncate(fd, 0) == 0) {
+    ssize_t ignored = ::pwrite(fd, pid.data(), pid.size(), 0);
+    (void)ignored;
+  }
+  return FileLock(guard.release());
+}
+
+FileLock& FileLock::operator=(FileLock&& o) noexcept {
+  if (this != &o) {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = o.fd_;
+    o.fd_ = -1;
+  }
+  return *this;
+}
+
+FileLock::~FileLock() {
+  if (fd_ >= 0) ::close(fd_);  // closing the last descriptor releases the flock
 }
 
 std::string executable_path() {

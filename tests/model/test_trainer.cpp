@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -420,6 +421,58 @@ TEST_CASE("trainer: a zero initial pose rate keeps every pose finite through the
     for (float r : c.pose.R) CHECK(std::isfinite(r));
     for (float x : c.pose.t) CHECK(std::isfinite(x));
   }
+}
+
+TEST_CASE("trainer: a non-finite gradient skips the step, is counted, and changes nothing") {
+  TrainOptions o = quiet_options(8);
+  o.optimize_poses = true;
+  o.test_nonfinite_iterations = {3, 6};
+  std::unique_ptr<Trainer> t = make_trainer(initial_model(config()), o, nullptr);
+  for (int it = 1; it <= 8; ++it) {
+    const std::vector<uint8_t> before = serialize_model(t->model());
+    const std::vector<Camera> poses_before = t->cameras();
+    IterationStats stats;
+    REQUIRE(t->step(&stats).ok());
+    const bool poisoned = it == 3 || it == 6;
+    CHECK(stats.skipped_nonfinite == poisoned);
+    CHECK(stats.nonfinite_steps == (it >= 6 ? 2 : it >= 3 ? 1 : 0));
+    CHECK(t->iteration() == it);
+    // A skipped step leaves parameters and poses as they were; a normal one moves them.
+    CHECK((serialize_model(t->model()) == before) == poisoned);
+    CHECK((std::memcmp(t->cameras()[size_t(stats.view)].pose.R, poses_before[size_t(stats.view)].pose.R, sizeof(float) * 9) == 0) ==
+          poisoned);
+  }
+  CHECK(check_model_finite(t->model(), "trained").ok());
+}
+
+TEST_CASE("trainer: non-finite steps in a row stop training with a clear error and no NaN is ever saved") {
+  TrainOptions o = quiet_options(20);
+  o.max_nonfinite_in_a_row = 4;
+  o.test_nonfinite_iterations = {2, 5, 6, 7, 8, 9};
+  std::unique_ptr<Trainer> t = make_trainer(initial_model(config()), o, nullptr);
+  Status st;
+  int it = 0;
+  while (st.ok() && it < 20) st = t->step(nullptr), ++it;
+  REQUIRE_FALSE(st.ok());
+  CHECK(st.code() == StatusCode::kNumerical);
+  CHECK(it == 8);  // 5, 6, 7, 8: four in a row (2 alone was skipped and forgiven)
+  CHECK_MESSAGE(st.message().find("4 steps in a row (iterations 5-8, 5 such steps in all)") != std::string::npos, st.message());
+  CHECK(check_model_finite(t->model(), "trained").ok());
+
+  // A model with a NaN is never written, by save_model or as a checkpoint, and never loaded.
+  test::TempDir dir("nonfinite");
+  HybridModel bad = initial_model(config());
+  bad.features[3] = std::numeric_limits<float>::quiet_NaN();
+  const Status saved = save_model(bad, (dir / "bad.hbgs"));
+  CHECK(saved.code() == StatusCode::kNumerical);
+  CHECK_MESSAGE(saved.message().find("non-finite anchor feature (anchor 0)") != std::string::npos, saved.message());
+  CHECK_FALSE(std::filesystem::exists((dir / "bad.hbgs")));
+  const std::vector<uint8_t> bytes = serialize_model(bad);
+  const Expected<HybridModel> loaded = deserialize_model(bytes.data(), bytes.size(), "bad.hbgs");
+  CHECK_FALSE(loaded.ok());
+  std::unique_ptr<Trainer> t2 = make_trainer(std::move(bad), quiet_options(1), nullptr);
+  CHECK(t2->save_checkpoint((dir / "bad.ckpt")).code() == StatusCode::kNumerical);
+  CHECK_FALSE(std::filesystem::exists((dir / "bad.ckpt")));
 }
 
 TEST_CASE("trainer: checkpoint at 15 then resume to 30 is bit-identical to an uninterrupted run") {

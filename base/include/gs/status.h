@@ -18,6 +18,7 @@ enum class StatusCode {
   kParseError,        // a file's contents are malformed (truncated, bad magic, wrong counts)
   kUnsupported,       // well-formed but not something hbgs handles (camera model, PLY property)
   kInternal,
+  kNumerical,         // a computation kept producing NaN or infinity (training diverged)
 };
 
 const char* status_code_name(StatusCode code);
@@ -44,6 +45,7 @@ inline Status parse_error(std::string m) { return Status(StatusCode::kParseError
 inline Status io_error(std::string m) { return Status(StatusCode::kIoError, std::move(m)); }
 inline Status unsupported(std::string m) { return Status(StatusCode::kUnsupported, std::move(m)); }
 inline Status capacity_exceeded(std::string m) { return Status(StatusCode::kCapacityExceeded, std::move(m)); }
+inline Status numerical_error(std::string m) { return Status(StatusCode::kNumerical, std::move(m)); }
 
 // Either a value or an error Status. Minimal C++17 stand-in for std::expected.
 template <class T>

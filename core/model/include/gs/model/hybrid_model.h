@@ -94,6 +94,9 @@ constexpr uint32_t kModelFileVersion = 1;
 std::vector<uint8_t> serialize_model(const HybridModel& model);
 Expected<HybridModel> deserialize_model(const uint8_t* data, size_t size, const std::string& source,
                                         size_t* consumed = nullptr);
+// Refuses (kNumerical, naming the array and anchor) a model holding NaN or infinity in its live rows
+// or MLPs: save_model and the trainer's checkpoint never write one, and loading refuses one.
+Status check_model_finite(const HybridModel& model, const std::string& source);
 Status save_model(const HybridModel& model, const std::string& path);
 Expected<HybridModel> load_model(const std::string& path);
 

@@ -66,6 +66,12 @@ struct TrainOptions {
   // resolution, coarse_levels halvings spread evenly over it (2: 1/4 then 1/2), then full resolution.
   int coarse_levels = 0;
   double coarse_fraction = 0.3;
+  // Numerical guard: a step whose loss or any gradient is NaN or infinite changes nothing (no Adam,
+  // pose or statistics update; the iteration still counts) and is reported in IterationStats; this
+  // many such steps in a row stop training with a kNumerical error (the model has diverged).
+  int max_nonfinite_in_a_row = 10;
+  // Test hook (fault injection): these iterations' gradients are replaced by NaN.
+  std::vector<int> test_nonfinite_iterations;
 };
 
 struct IterationStats {
@@ -79,6 +85,8 @@ struct IterationStats {
   bool adjusted = false;   // anchors were grown / pruned this iteration
   int downscale = 1;       // resolution divisor of this iteration (coarse to fine)
   int poses_registered = -1;  // poses moved by a registration pass this iteration (-1: no pass)
+  bool skipped_nonfinite = false;  // the loss or a gradient was not finite: nothing was updated
+  int nonfinite_steps = 0;         // steps skipped so far by this trainer (since create or load)
 };
 
 class Trainer {
@@ -91,7 +99,8 @@ class Trainer {
                                                    const simd::KernelTable* kernels = nullptr);
   ~Trainer();
 
-  // Runs one iteration. Fails only on a broken invariant (reported, not asserted).
+  // Runs one iteration. Fails on a broken invariant (reported, not asserted) and with kNumerical
+  // after max_nonfinite_in_a_row non-finite steps in a row.
   Status step(IterationStats* stats);
   int iteration() const;  // completed iterations
   const HybridModel& model() const;

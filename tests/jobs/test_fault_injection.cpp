@@ -1,0 +1,247 @@
+// SPDX-License-Identifier: MIT
+// Fault injection over the jobs' writes (gs::platform::inject_write_fault): for every k, the k-th
+// file write of a short training run and of a render (an ingest: test_fault_ingest.cpp) fails as a full disk (short write
+// or ENOSPC) or a failing disk (EIO). After each failure the output folder is at a consistent state
+// (a training run at its last commit: manifest, model, checkpoint and progress of one iteration, no
+// leftovers; a render leaves nothing of itself), and resuming or rerunning the command
+// finishes with exactly the output of an undisturbed run. Also: the run folder's lock, a checkpoint
+// copied from another run, and --iterations below the checkpoint on resume.
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <doctest/doctest.h>
+#include <nlohmann/json.hpp>
+
+#include "gs/jobs/render.h"
+#include "gs/jobs/run_folder.h"
+#include "gs/jobs/run_state.h"
+#include "gs/jobs/train.h"
+#include "gs/platform/file.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using gs::platform::WriteFault;
+
+constexpr WriteFault kFaults[] = {WriteFault::kShortWrite, WriteFault::kNoSpace, WriteFault::kIoError};
+const char* fault_name(WriteFault f) {
+  return f == WriteFault::kShortWrite ? "short write" : f == WriteFault::kNoSpace ? "ENOSPC" : "EIO";
+}
+// The OS reason each fault must surface as, in the error message.
+const char* fault_reason(WriteFault f) { return f == WriteFault::kIoError ? "Input/output error" : "No space left on device"; }
+
+int run(const std::string& command) {
+  MESSAGE(command);
+  return std::system((command + " > /dev/null 2>&1").c_str());
+}
+
+const fs::path& tmp_root() {
+  static const fs::path root = [] {
+    const fs::path p = fs::path(GS_TEST_TMP) / "faults";
+    std::error_code ec;
+    fs::remove_all(p, ec);
+    fs::create_directories(p);
+    return p;
+  }();
+  return root;
+}
+
+// A small generated scene (64x48, 8 views of which the synth's test split holds some).
+const std::string& scene() {
+  static const std::string path = [] {
+    const std::string s = (tmp_root() / "scene").string();
+    REQUIRE(run(std::string(GS_HBGS_EXE) + " synth --out " + s + " --width 64 --height 48 --views-arc 4 --views-orbit 4 --points 800") == 0);
+    return s;
+  }();
+  return path;
+}
+
+std::vector<uint8_t> bytes_of(const fs::path& p) {
+  gs::Expected<std::vector<uint8_t>> b = gs::platform::read_file(p.string());
+  REQUIRE_MESSAGE(b.ok(), b.status().to_string());
+  return *b;
+}
+
+gs::jobs::TrainRunOptions short_run(const std::string& out) {
+  gs::jobs::TrainRunOptions o;
+  o.dataset = scene();
+  o.out = out;
+  o.iterations = 6;
+  o.checkpoint_every = 2;
+  o.eval_every = 3;
+  o.save_at = "4";
+  o.threads = 2;
+  o.seed = 3;
+  return o;
+}
+
+// Files whose names mark an interrupted write.
+std::vector<std::string> leftovers(const fs::path& dir) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (fs::recursive_directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string n = it->path().filename().string();
+    if (n.find(".tmp.") != std::string::npos || (n.size() > 5 && n.substr(n.size() - 5) == ".next")) out.push_back(it->path().string());
+  }
+  return out;
+}
+
+// A run folder after a failure: either at a commit (manifest, model, checkpoint and progress of one
+// iteration) or holding no state file at all.
+void check_run_consistent(const fs::path& run, const std::string& context) {
+  INFO(context);
+  CHECK(leftovers(run).empty());
+  if (!fs::exists(run / gs::jobs::kManifestFile)) {
+    CHECK_FALSE(fs::exists(run / gs::jobs::kCheckpointFile));
+    CHECK_FALSE(fs::exists(run / gs::jobs::kProgressFile));
+    CHECK_FALSE(fs::exists(run / gs::jobs::kModelFile));
+    return;
+  }
+  gs::Expected<gs::jobs::RunState> st = gs::jobs::check_run_state(run.string());
+  REQUIRE_MESSAGE(st.ok(), st.status().to_string());
+  const nlohmann::json progress = nlohmann::json::parse(bytes_of(run / gs::jobs::kProgressFile));
+  CHECK(progress.value("iteration", -1) == st->iteration);
+  CHECK(progress.value("losses", std::vector<float>()).size() == size_t(st->iteration));
+}
+
+}  // namespace
+
+TEST_CASE("fault injection: every write of a short training run fails once; the folder stays committed and --resume finishes it exactly") {
+  const fs::path ref = tmp_root() / "train_ref";
+  gs::platform::inject_write_fault(0, WriteFault::kNoSpace);
+  gs::jobs::TrainRunSummary summary;
+  gs::Status st = gs::jobs::train_run(short_run(ref.string()), nullptr, &summary);
+  REQUIRE_MESSAGE(st.ok(), st.to_string());
+  const uint64_t writes = gs::platform::write_file_atomic_calls();
+  MESSAGE("an undisturbed run writes " << writes << " files");
+  REQUIRE(writes >= 10);
+  const std::vector<uint8_t> ref_model = bytes_of(ref / gs::jobs::kModelFile);
+  const std::vector<uint8_t> ref_ckpt = bytes_of(ref / gs::jobs::kCheckpointFile);
+  const nlohmann::json ref_progress = nlohmann::json::parse(bytes_of(ref / gs::jobs::kProgressFile));
+  check_run_consistent(ref, "reference run");
+
+  int resumed = 0, rerun = 0;
+  for (uint64_t k = 1; k <= writes; ++k) {
+    for (WriteFault fault : kFaults) {
+      const std::string context = "write " + std::to_string(k) + " of " + std::to_string(writes) + " fails (" + fault_name(fault) + ")";
+      const fs::path out = tmp_root() / "train_fault";
+      std::error_code ec;
+      fs::remove_all(out, ec);
+      gs::platform::inject_write_fault(k, fault);
+      st = gs::jobs::train_run(short_run(out.string()), nullptr, nullptr);
+      gs::platform::inject_write_fault(0, fault);
+      INFO(context);
+      REQUIRE_FALSE(st.ok());
+      CHECK_MESSAGE(st.message().find(fault_reason(fault)) != std::string::npos, st.to_string());
+      check_run_consistent(out, context);
+      // The same command again: --resume where the run recorded itself, else a plain rerun.
+      gs::jobs::TrainRunOptions again = short_run(out.string());
+      again.resume = fs::exists(out / gs::jobs::kRunJson);
+      (again.resume ? resumed : rerun) += 1;
+      st = gs::jobs::train_run(again, nullptr, nullptr);
+      REQUIRE_MESSAGE(st.ok(), st.to_string());
+      check_run_consistent(out, context + ", then finished");
+      CHECK(bytes_of(out / gs::jobs::kModelFile) == ref_model);
+      CHECK(bytes_of(out / gs::jobs::kCheckpointFile) == ref_ckpt);
+      const nlohmann::json progress = nlohmann::json::parse(bytes_of(out / gs::jobs::kProgressFile));
+      CHECK(progress["losses"] == ref_progress["losses"]);
+      CHECK(progress["psnr_rows"].size() == ref_progress["psnr_rows"].size());
+      CHECK(fs::exists(out / "model_4.hbgs"));
+    }
+  }
+  MESSAGE((3 * writes) << " failures: " << resumed << " finished by --resume, " << rerun << " by rerunning");
+  CHECK(resumed > 0);
+}
+
+TEST_CASE("fault injection: every write of a render fails once; nothing of it is left and a rerun gives the same images") {
+  const fs::path run_dir = tmp_root() / "render_model";
+  gs::Status st = gs::jobs::train_run(short_run(run_dir.string()), nullptr, nullptr);
+  REQUIRE_MESSAGE(st.ok(), st.to_string());
+  // A trained model, and a dataset rendered from its SfM points: the two render paths.
+  for (const std::string& input : {run_dir.string(), scene()}) {
+    gs::jobs::RenderRunOptions ro;
+    ro.input = input;
+    ro.threads = 2;
+    ro.out = (tmp_root() / "render_ref").string();
+    std::error_code ec;
+    fs::remove_all(ro.out, ec);
+    gs::platform::inject_write_fault(0, WriteFault::kNoSpace);
+    gs::jobs::RenderRunSummary ref;
+    st = gs::jobs::render_run(ro, nullptr, &ref);
+    REQUIRE_MESSAGE(st.ok(), st.to_string());
+    const uint64_t writes = gs::platform::write_file_atomic_calls();
+    MESSAGE("an undisturbed render of " << input << " writes " << writes << " files");
+    REQUIRE(writes == ref.views.size() + 1);  // one PNG per view and render.json
+    for (uint64_t k = 1; k <= writes; ++k) {
+      for (WriteFault fault : kFaults) {
+        const std::string context = input + ": write " + std::to_string(k) + " of " + std::to_string(writes) + " fails (" + fault_name(fault) + ")";
+        INFO(context);
+        const fs::path out = tmp_root() / "render_fault";
+        fs::remove_all(out, ec);
+        gs::jobs::RenderRunOptions o = ro;
+        o.out = out.string();
+        gs::platform::inject_write_fault(k, fault);
+        st = gs::jobs::render_run(o, nullptr, nullptr);
+        gs::platform::inject_write_fault(0, fault);
+        REQUIRE_FALSE(st.ok());
+        CHECK_MESSAGE(st.message().find(fault_reason(fault)) != std::string::npos, st.to_string());
+        CHECK_FALSE(fs::exists(out));
+        st = gs::jobs::render_run(o, nullptr, nullptr);
+        REQUIRE_MESSAGE(st.ok(), st.to_string());
+        for (const gs::jobs::RenderedView& v : ref.views) CHECK(bytes_of(out / v.png) == bytes_of(fs::path(ro.out) / v.png));
+      }
+    }
+  }
+}
+
+TEST_CASE("run folder: a second writer is refused while the first holds the lock") {
+  const fs::path out = tmp_root() / "locked";
+  fs::create_directories(out);
+  gs::Expected<gs::platform::FileLock> held = gs::jobs::lock_run_folder(out.string());
+  REQUIRE(held.ok());
+  const gs::Status st = gs::jobs::train_run(short_run(out.string()), nullptr, nullptr);
+  REQUIRE_FALSE(st.ok());
+  CHECK_MESSAGE(st.message().find("in use by another hbgs process") != std::string::npos, st.to_string());
+  CHECK_FALSE(fs::exists(out / gs::jobs::kRunJson));
+  *held = gs::platform::FileLock();  // released: now it trains
+  const gs::Status again = gs::jobs::train_run(short_run(out.string()), nullptr, nullptr);
+  CHECK_MESSAGE(again.ok(), again.to_string());
+}
+
+TEST_CASE("run folder: --resume refuses a checkpoint copied from another run and --iterations below the checkpoint") {
+  const fs::path a = tmp_root() / "run_a", b = tmp_root() / "run_b";
+  gs::jobs::TrainRunOptions oa = short_run(a.string()), ob = short_run(b.string());
+  ob.seed = 4;
+  ob.iterations = 4;
+  REQUIRE(gs::jobs::train_run(oa, nullptr, nullptr).ok());
+  REQUIRE(gs::jobs::train_run(ob, nullptr, nullptr).ok());
+
+  // --iterations below the checkpoint: refused, and run.json still records the run's own count.
+  gs::jobs::TrainRunOptions fewer = oa;
+  fewer.resume = true;
+  fewer.iterations = 3;
+  fewer.given = {"iterations"};
+  gs::Status st = gs::jobs::train_run(fewer, nullptr, nullptr);
+  REQUIRE_FALSE(st.ok());
+  CHECK_MESSAGE(st.message().find("below the checkpoint's iteration 6") != std::string::npos, st.to_string());
+  CHECK(nlohmann::json::parse(bytes_of(a / gs::jobs::kRunJson))["options"]["iterations"] == 6);
+
+  // B's checkpoint (seed 4) copied into A (seed 3): the manifest's checksum no longer matches.
+  fs::copy_file(b / gs::jobs::kCheckpointFile, a / gs::jobs::kCheckpointFile, fs::copy_options::overwrite_existing);
+  gs::jobs::TrainRunOptions more = oa;
+  more.resume = true;
+  more.iterations = 8;
+  more.given = {"iterations"};
+  st = gs::jobs::train_run(more, nullptr, nullptr);
+  REQUIRE_FALSE(st.ok());
+  CHECK_MESSAGE(st.message().find("does not match") != std::string::npos, st.to_string());
+  // ... and with B's manifest copied too, the model options recorded beside it differ from A's run.json.
+  fs::copy_file(b / gs::jobs::kManifestFile, a / gs::jobs::kManifestFile, fs::copy_options::overwrite_existing);
+  for (const char* f : {gs::jobs::kModelFile, gs::jobs::kProgressFile})
+    fs::copy_file(b / f, a / f, fs::copy_options::overwrite_existing);
+  st = gs::jobs::train_run(more, nullptr, nullptr);
+  REQUIRE_FALSE(st.ok());
+  CHECK_MESSAGE(st.message().find("other model options") != std::string::npos, st.to_string());
+}
