@@ -245,3 +245,79 @@ TEST_CASE("run folder: --resume refuses a checkpoint copied from another run and
   REQUIRE_FALSE(st.ok());
   CHECK_MESSAGE(st.message().find("other model options") != std::string::npos, st.to_string());
 }
+
+TEST_CASE("run state: recovery completes a commit interrupted among its renames and discards an uncommitted one") {
+  const fs::path run = tmp_root() / "recover";
+  std::error_code ec;
+  fs::remove_all(run, ec);
+  REQUIRE(gs::jobs::train_run(short_run(run.string()), nullptr, nullptr).ok());
+  const gs::Expected<gs::jobs::RunState> committed = gs::jobs::check_run_state(run.string());
+  REQUIRE(committed.ok());
+  CHECK(committed->iteration == 6);
+  auto write = [](const fs::path& p, const std::string& text) { REQUIRE(gs::platform::write_file_atomic(p.string(), text).ok()); };
+
+  // A commit killed after its manifest: two of the three files still wait under ".next".
+  const std::vector<uint8_t> model = bytes_of(run / "model.hbgs"), progress = bytes_of(run / "progress.json");
+  fs::rename(run / "model.hbgs", run / "model.hbgs.next");
+  fs::rename(run / "progress.json", run / "progress.json.next");
+  write(run / "model.hbgs", "an older model");
+  write(run / "progress.json", "{}");
+  CHECK_FALSE(gs::jobs::check_run_state(run.string()).ok());
+  gs::Expected<gs::jobs::RunState> rec = gs::jobs::recover_run_state(run.string());
+  REQUIRE_MESSAGE(rec.ok(), rec.status().to_string());
+  CHECK(rec->notes.size() == 2);
+  CHECK(bytes_of(run / "model.hbgs") == model);
+  CHECK(bytes_of(run / "progress.json") == progress);
+  CHECK(gs::jobs::check_run_state(run.string()).ok());
+
+  // A commit killed before its manifest, and a temporary of a killed write: both discarded.
+  write(run / "checkpoint.bin.next", "half a checkpoint");
+  write(run / "progress.json.tmp.4242", "partial");
+  rec = gs::jobs::recover_run_state(run.string());
+  REQUIRE(rec.ok());
+  CHECK(rec->notes.size() == 2);
+  CHECK(rec->iteration == 6);
+  CHECK(leftovers(run).empty());
+
+  // A state file changed behind the run's back: refused, naming it.
+  write(run / "progress.json", "{\"iteration\": 6}");
+  rec = gs::jobs::recover_run_state(run.string());
+  REQUIRE_FALSE(rec.ok());
+  CHECK_MESSAGE(rec.status().message().find("progress.json does not match") != std::string::npos, rec.status().to_string());
+  // A manifest that is not one: refused too, never trusted.
+  write(run / "manifest.json", "{\"format\": \"hbgs-run-manifest\", \"version\": 1, \"iteration\": 6, \"files\": {\"../x\": {}}}");
+  rec = gs::jobs::recover_run_state(run.string());
+  REQUIRE_FALSE(rec.ok());
+  CHECK_MESSAGE(rec.status().message().find("not a plain name") != std::string::npos, rec.status().to_string());
+}
+
+TEST_CASE("run folder: a run that failed before its first checkpoint restarts with --resume; a plain train says so") {
+  const fs::path run = tmp_root() / "no_checkpoint";
+  std::error_code ec;
+  fs::remove_all(run, ec);
+  gs::jobs::TrainRunOptions o = short_run(run.string());
+  o.seed = 11;  // recorded in run.json; the restart must use it
+  gs::platform::inject_write_fault(3, WriteFault::kNoSpace);  // after run.json, before the first commit
+  gs::Status st = gs::jobs::train_run(o, nullptr, nullptr);
+  gs::platform::inject_write_fault(0, WriteFault::kNoSpace);
+  REQUIRE_FALSE(st.ok());
+  REQUIRE(fs::exists(run / gs::jobs::kRunJson));
+  REQUIRE_FALSE(fs::exists(run / gs::jobs::kManifestFile));
+
+  st = gs::jobs::train_run(short_run(run.string()), nullptr, nullptr);
+  REQUIRE_FALSE(st.ok());
+  CHECK_MESSAGE(st.message().find("stopped before its first checkpoint; pass --resume") != std::string::npos, st.to_string());
+
+  gs::jobs::TrainRunOptions resume = short_run(run.string());
+  resume.resume = true;  // seed not given: it comes from run.json
+  std::vector<std::string> notes;
+  st = gs::jobs::train_run(resume, [&](const gs::jobs::TrainEvent& e) {
+    if (e.kind == gs::jobs::TrainEvent::kNote) notes.push_back(e.message);
+  }, nullptr);
+  REQUIRE_MESSAGE(st.ok(), st.to_string());
+  bool said = false;
+  for (const std::string& n : notes) said = said || n.find("restarting it from iteration 0") != std::string::npos;
+  CHECK(said);
+  CHECK(nlohmann::json::parse(bytes_of(run / gs::jobs::kRunJson))["options"]["seed"] == 11);
+  CHECK(gs::jobs::check_run_state(run.string()).ok());
+}
