@@ -4,11 +4,18 @@
 // or ENOSPC) or a failing disk (EIO). After each failure the output folder is at a consistent state
 // (a training run at its last commit: manifest, model, checkpoint and progress of one iteration, no
 // leftovers; a render leaves nothing of itself), and resuming or rerunning the command
-// finishes with exactly the output of an undisturbed run. Also: the run folder's lock, a checkpoint
-// copied from another run, and --iterations below the checkpoint on resume.
+// finishes with exactly the output of an undisturbed run. Also: kill -9 at random moments, the run
+// folder's lock, a checkpoint copied from another run, and --iterations below the checkpoint on resume.
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <doctest/doctest.h>
@@ -320,4 +327,53 @@ TEST_CASE("run folder: a run that failed before its first checkpoint restarts wi
   CHECK(said);
   CHECK(nlohmann::json::parse(bytes_of(run / gs::jobs::kRunJson))["options"]["seed"] == 11);
   CHECK(gs::jobs::check_run_state(run.string()).ok());
+}
+
+TEST_CASE("run folder: kill -9 at random moments leaves a committed state that --resume finishes exactly") {
+  gs::jobs::TrainRunOptions o = short_run((tmp_root() / "kill_ref").string());
+  o.iterations = 30;
+  o.checkpoint_every = 1;  // a commit every iteration: kills land inside commits too
+  o.eval_every = 5;
+  o.save_at = "20";
+  REQUIRE(gs::jobs::train_run(o, nullptr, nullptr).ok());
+  const std::vector<uint8_t> ref_model = bytes_of(fs::path(o.out) / gs::jobs::kModelFile);
+  std::mt19937 rng(12345);
+  int interrupted = 0;
+  for (int trial = 0; trial < 6; ++trial) {
+    gs::jobs::TrainRunOptions k = o;
+    k.out = (tmp_root() / "kill").string();
+    std::error_code ec;
+    fs::remove_all(k.out, ec);
+    // The kill lands a random 0-30 ms after the run committed a random iteration of 2-20: inside
+    // later steps, evaluations and commits (a commit takes milliseconds: three fsynced files).
+    const int target = std::uniform_int_distribution<int>(2, 20)(rng);
+    const int delay_ms = std::uniform_int_distribution<int>(0, 30)(rng);
+    const pid_t child = ::fork();
+    REQUIRE(child >= 0);
+    if (child == 0) _exit(gs::jobs::train_run(k, nullptr, nullptr).ok() ? 0 : 1);
+    const fs::path manifest = fs::path(k.out) / gs::jobs::kManifestFile;
+    for (int waited = 0; waited < 60000; ++waited) {
+      gs::Expected<std::string> text = gs::platform::read_text_file(manifest.string());
+      const nlohmann::json j = text.ok() ? nlohmann::json::parse(*text, nullptr, false) : nlohmann::json();
+      if (j.is_object() && j.value("iteration", 0) >= target) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
+    ::kill(child, SIGKILL);
+    int status = 0;
+    ::waitpid(child, &status, 0);
+    const bool killed = WIFSIGNALED(status);
+    interrupted += killed;
+    INFO("trial " << trial << ": killed " << delay_ms << " ms after iteration " << target << (killed ? "" : " (it had finished)"));
+    if (fs::exists(fs::path(k.out) / gs::jobs::kManifestFile)) {
+      gs::Expected<gs::jobs::RunState> st = gs::jobs::recover_run_state(k.out);
+      REQUIRE_MESSAGE(st.ok(), st.status().to_string());
+      CHECK(gs::jobs::check_run_state(k.out).ok());
+    }
+    k.resume = fs::exists(fs::path(k.out) / gs::jobs::kRunJson);
+    const gs::Status st = gs::jobs::train_run(k, nullptr, nullptr);
+    REQUIRE_MESSAGE(st.ok(), st.to_string());
+    CHECK(bytes_of(fs::path(k.out) / gs::jobs::kModelFile) == ref_model);
+  }
+  CHECK(interrupted == 6);
 }
