@@ -473,6 +473,8 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
   } cleanup{a.out, created, training_started};
 
   Expected<RunState> state = recover_run_state(a.out);
+  // --force replaces whatever is there, a damaged state included (run_outputs lists the manifest).
+  if (!state.ok() && a.force) state = RunState{};
   if (!state.ok()) return Status(state.status().code(), (a.resume ? "--resume: " : "") + state.status().message());
   for (const std::string& n : state->notes) note(n);
   const std::string ckpt = (fs::path(a.out) / kCheckpointFile).string();

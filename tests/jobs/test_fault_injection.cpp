@@ -377,3 +377,21 @@ TEST_CASE("run folder: kill -9 at random moments leaves a committed state that -
   }
   CHECK(interrupted == 6);
 }
+
+TEST_CASE("run folder: --force replaces a run whose state is damaged; without it the damage is reported") {
+  const fs::path run = tmp_root() / "damaged";
+  std::error_code ec;
+  fs::remove_all(run, ec);
+  REQUIRE(gs::jobs::train_run(short_run(run.string()), nullptr, nullptr).ok());
+  REQUIRE(gs::platform::write_file_atomic((run / gs::jobs::kCheckpointFile).string(), std::string("garbage")).ok());
+  gs::jobs::TrainRunOptions o = short_run(run.string());
+  o.resume = true;
+  gs::Status st = gs::jobs::train_run(o, nullptr, nullptr);
+  REQUIRE_FALSE(st.ok());
+  CHECK_MESSAGE(st.message().find("checkpoint.bin does not match") != std::string::npos, st.to_string());
+  o.resume = false;
+  o.force = true;
+  st = gs::jobs::train_run(o, nullptr, nullptr);
+  REQUIRE_MESSAGE(st.ok(), st.to_string());
+  CHECK(gs::jobs::check_run_state(run.string()).ok());
+}
