@@ -48,6 +48,11 @@ int run_single(const RegisterArgs& args) {
               s.moved_rotation_deg, s.moved_translation, r.iterations, r.levels, r.milliseconds, a.solver.c_str(), a.downscale,
               s.threads);
   if (!a.json.empty()) std::printf("  json: %s\n", a.json.c_str());
+  if (!r.converged()) {
+    std::fprintf(stderr, "hbgs register: the verdict is %s, not converged (exit code %d)\n", gs::pose::verdict_name(r.verdict),
+                 kExitNotConverged);
+    return kExitNotConverged;
+  }
   return kExitOk;
 }
 
@@ -74,6 +79,11 @@ int run_batch(const RegisterArgs& args) {
   std::printf("  images: PSNR %.2f dB / SSIM %.4f at the start poses, %.2f dB / %.4f at the registered poses\n",
               s.psnr_at_start, s.ssim_at_start, s.psnr_registered, s.ssim_registered);
   std::printf("  results: %s, poses: %s/\n", s.json_path.c_str(), s.posed_dir.c_str());
+  if (s.converged < n) {
+    std::fprintf(stderr, "hbgs register: %zu of %zu views did not reach the converged verdict (exit code %d)\n", n - s.converged, n,
+                 kExitNotConverged);
+    return kExitNotConverged;
+  }
   return kExitOk;
 }
 
@@ -108,6 +118,8 @@ Command add_register_command(CLI::App& parent) {
   gs::jobs::RegisterRunOptions* o = &args->options;
   CLI::App* sub = parent.add_subcommand(
       "register", "Find the camera pose of an image (or of a dataset's views) against a trained model");
+  sub->footer("Exit codes: 0 every result has the verdict converged; 3 a result is poor_fit or diverged (its pose and the "
+              "files are still written); 1 an error; 2 a usage error.");
   sub->add_option("model", o->input, "Run folder (from hbgs train) or .hbgs model file")->required();
   sub->add_option("image", o->image, "Image to register (single-image mode; needs --init)");
   sub->add_option("--init", o->init, "Start pose \"qw qx qy qz tx ty tz\" (world-to-camera, COLMAP order)");

@@ -21,6 +21,7 @@ namespace hbgs::cli {
 constexpr int kExitOk = 0;
 constexpr int kExitRuntime = 1;
 constexpr int kExitUsage = 2;
+constexpr int kExitNotConverged = 3;  // hbgs register: a result whose verdict is not "converged"
 
 // A registered subcommand: its CLI11 node, and what to run once it has been parsed.
 struct Command {

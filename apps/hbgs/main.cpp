@@ -50,6 +50,21 @@ int main(int argc, char** argv) {
     return hbgs::cli::run_bench(rest);
   }
 
+  // A first word that is not a command gets a message naming it (CLI11 would only say that a
+  // subcommand is required).
+  if (argc > 1 && argv[1][0] != '-') {
+    std::string names;
+    bool known = false;
+    for (const CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) {
+      known = known || sub->get_name() == argv[1];
+      names += (names.empty() ? "" : ", ") + sub->get_name();
+    }
+    if (!known) {
+      std::fprintf(stderr, "hbgs: unknown command '%s'; the commands are: %s (hbgs --help describes them)\n", argv[1], names.c_str());
+      return hbgs::cli::kExitUsage;
+    }
+  }
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <memory>
 
 #include "gs/io/image.h"
@@ -17,6 +18,7 @@
 #include "gs/model/trainer.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
+#include "gs/platform/path.h"
 #include "gs/stats.h"
 
 namespace gs::model {
@@ -55,14 +57,24 @@ std::string json_string(const std::string& s) {
   return out + "\"";
 }
 
-// "<name>.png" relative to the render folder (the view name may contain sub-folders).
-std::string png_path(const std::string& dir, const std::string& view_name) {
-  std::filesystem::path rel(view_name);
-  rel.replace_extension(".png");
-  return (std::filesystem::path(dir) / rel).string();
-}
-
 }  // namespace
+
+Expected<std::vector<std::string>> render_png_paths(const std::string& dir, const std::vector<const io::DatasetView*>& views) {
+  std::vector<std::string> out;
+  std::map<std::string, std::string> owner;  // output path -> view name
+  for (const io::DatasetView* v : views) {
+    std::filesystem::path rel(v->name);
+    rel.replace_extension(".png");
+    Expected<std::string> path = platform::join_inside(dir, rel.string());
+    if (!path.ok()) return Status(path.status().code(), "view " + v->name + ": " + path.status().message());
+    const auto [it, fresh] = owner.emplace(*path, v->name);
+    if (!fresh)
+      return invalid_argument("views '" + it->second + "' and '" + v->name + "' would both be rendered to " + *path +
+                              "; rename one of the images");
+    out.push_back(*path);
+  }
+  return out;
+}
 
 Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<const io::DatasetView*>& views,
                                     const EvalOptions& options, platform::ThreadPool* pool) {
@@ -77,7 +89,13 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
     max_h = std::max(max_h, h);
   }
   const bool full = !options.psnr_only;
-  if (full && !options.render_dir.empty()) GS_RETURN_IF_ERROR(platform::make_dirs(options.render_dir));
+  std::vector<std::string> pngs;
+  if (full && !options.render_dir.empty()) {
+    Expected<std::vector<std::string>> paths = render_png_paths(options.render_dir, views);
+    if (!paths.ok()) return Status(paths.status().code(), "evaluation: " + paths.status().message());
+    pngs = std::move(paths).value();
+    GS_RETURN_IF_ERROR(platform::make_dirs(options.render_dir));
+  }
 
   ModelRenderer renderer;
   GS_RETURN_IF_ERROR(renderer.init(model, max_w, max_h, pool));
@@ -104,7 +122,7 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
         m.lpips = *d;
       }
       if (!options.render_dir.empty()) {
-        const std::string path = png_path(options.render_dir, v->name);
+        const std::string& path = pngs[result.views.size()];
         const std::string parent = std::filesystem::path(path).parent_path().string();
         if (!parent.empty()) GS_RETURN_IF_ERROR(platform::make_dirs(parent));
         GS_RETURN_IF_ERROR(io::write_png(path, img));

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <sstream>
@@ -151,6 +152,27 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
   }
   Expected<model::HybridModel> model = model::load_model(s.source.model_path);
   if (!model.ok()) return model.status();
+  // A start pose far outside the scene cannot be registered (the model is not in view, and float
+  // rendering loses all precision at 1e30): refuse it with the distance instead of failing later.
+  {
+    double C[3], mean[3] = {0, 0, 0};
+    pose::centre(s.init, C);
+    const size_t M = model->anchor_count;
+    for (size_t i = 0; i < M; ++i)
+      for (int k = 0; k < 3; ++k) mean[k] += double(model->positions[3 * i + size_t(k)]) / double(M);
+    const double d = std::sqrt((C[0] - mean[0]) * (C[0] - mean[0]) + (C[1] - mean[1]) * (C[1] - mean[1]) +
+                               (C[2] - mean[2]) * (C[2] - mean[2]));
+    const double limit = kMaxStartDistanceInRadii * double(model->scene_extent);
+    auto g = [](double v) {
+      char buf[32];
+      std::snprintf(buf, sizeof(buf), "%.4g", v);
+      return std::string(buf);
+    };
+    if (!(d <= limit))
+      return invalid_argument("--init: the camera centre is " + g(d) + " from the scene's centre, more than " +
+                              g(kMaxStartDistanceInRadii) + " times the scene radius " + g(model->scene_extent) +
+                              "; check the pose's order (qw qx qy qz tx ty tz, world-to-camera as in COLMAP) and units");
+  }
   Expected<io::Image8> img = io::read_image(a.image, 3);
   if (!img.ok()) return img.status();
   K.width = img->width;

@@ -56,14 +56,6 @@ std::string available_isas() {
   return names;
 }
 
-// Output name of a view, relative to the output folder: its image name (which may contain
-// sub-folders) with the extension replaced by .png.
-fs::path output_name(const std::string& image_name) {
-  fs::path rel(image_name);
-  rel.replace_extension(".png");
-  return rel;
-}
-
 // Files this run created, removed again if the run fails part-way so no partial output remains.
 class OutputGuard {
  public:
@@ -95,16 +87,6 @@ nlohmann::json view_json(const RenderedView& r) {
           {"psnr_db", std::isfinite(r.psnr) ? nlohmann::json(r.psnr) : nlohmann::json(nullptr)}};
 }
 
-// Refuses an --out that is a file or the dataset's own images folder (PNGs would replace it).
-std::string output_problem(const std::string& out, const std::string& dataset) {
-  std::error_code ec;
-  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) return "output " + out + " exists and is not a directory";
-  const fs::path images = fs::path(dataset) / "images";
-  if (fs::exists(out, ec) && fs::exists(images, ec) && fs::equivalent(out, images, ec))
-    return "output " + out + " is the dataset's images folder; choose another --out";
-  return "";
-}
-
 Status render_model(const RenderRunOptions& a, const std::function<void(const RenderedView&, size_t, size_t)>& progress,
                     RenderRunSummary* summary) {
   const double t0 = platform::now_seconds();
@@ -117,13 +99,15 @@ Status render_model(const RenderRunOptions& a, const std::function<void(const Re
   const ModelSource* src = &loaded->source;
   const model::HybridModel* model = &loaded->model;
   const std::unique_ptr<LoadedDataset>* data = &loaded->data;
-  if (std::string err = output_problem(a.out, src->dataset); !err.empty()) return invalid_argument(err);
+  GS_RETURN_IF_ERROR(check_output_outside_dataset(a.out, src->dataset));
+  Expected<std::vector<std::string>> pngs = model::render_png_paths(a.out, (*data)->views);
+  if (!pngs.ok()) return pngs.status();
 
   // A failure removes what this run wrote: the whole folder when it made it, else the PNGs of its
   // views (those it would have replaced), so no mix of old and new renders remains.
   const bool out_existed = platform::is_directory(a.out);
   OutputGuard guard(a.out, !out_existed);
-  for (const io::DatasetView* v : (*data)->views) guard.add(fs::path(a.out) / output_name(v->name));
+  for (const std::string& png : *pngs) guard.add(png);
   platform::ThreadPool pool(a.threads);
   model::EvalOptions eo;
   eo.render_dir = a.out;
@@ -139,7 +123,7 @@ Status render_model(const RenderRunOptions& a, const std::function<void(const Re
     const io::DatasetView& v = *(*data)->views[i];
     RenderedView rv;
     rv.name = m.name;
-    rv.png = output_name(m.name).generic_string();
+    rv.png = fs::path((*pngs)[i]).lexically_relative(a.out).generic_string();
     rv.is_test = v.is_test;
     rv.width = v.camera.intr.width;
     rv.height = v.camera.intr.height;
@@ -228,13 +212,15 @@ Status render_run(const RenderRunOptions& a, const std::function<void(const Rend
   const float* background = a.background;
   for (int k = 0; k < 3; ++k)
     if (!(background[k] >= 0.f && background[k] <= 1.f)) return invalid_argument("--background: values must be in [0, 1]");
-  if (std::string err = output_problem(a.out, a.input); !err.empty()) return invalid_argument(err);
+  GS_RETURN_IF_ERROR(check_output_outside_dataset(a.out, a.input));
 
   const double load_t0 = platform::now_seconds();
   Expected<std::unique_ptr<LoadedDataset>> loaded_dataset = load_dataset_split(a.input, max_width, a.split);
   if (!loaded_dataset.ok()) return loaded_dataset.status();
   const io::Dataset* dataset = &(*loaded_dataset)->dataset;
   const std::vector<const io::DatasetView*>& views = (*loaded_dataset)->views;
+  Expected<std::vector<std::string>> pngs = model::render_png_paths(a.out, views);
+  if (!pngs.ok()) return pngs.status();
 
   GaussianCloud cloud;
   std::string source;
@@ -314,7 +300,7 @@ Status render_run(const RenderRunOptions& a, const std::function<void(const Rend
     }
     const int w = v.camera.intr.width, h = v.camera.intr.height;
     const io::Image8 img = io::image_from_float_rgb(rgb.data(), w, h);
-    const fs::path rel = output_name(v.name), png = out_dir / rel;
+    const fs::path png = (*pngs)[i], rel = png.lexically_relative(out_dir);
     if (png.has_parent_path() && png.parent_path() != out_dir)
       GS_RETURN_IF_ERROR(platform::make_dirs(png.parent_path().string()));
     GS_RETURN_IF_ERROR(io::write_png(png.string(), img));

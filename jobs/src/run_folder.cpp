@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gs/platform/file.h"
+#include "gs/platform/path.h"
 #include "json_util.h"
 
 namespace gs::jobs {
@@ -43,6 +44,21 @@ std::string absolute_path(const std::string& path) {
   std::error_code ec;
   const fs::path p = fs::absolute(path, ec);
   return ec ? path : p.lexically_normal().string();
+}
+
+Status check_output_outside_dataset(const std::string& out, const std::string& dataset) {
+  std::error_code ec;
+  if (fs::exists(out, ec) && !fs::is_directory(out, ec)) return invalid_argument("output " + out + " exists and is not a directory");
+  if (!platform::path_is_inside(out, dataset)) return Status::Ok();
+  // Inside the dataset: a sub-folder of its own ("DATASET/renders") is fine; the dataset folder
+  // itself, its images (images/, images_2/ ...) and its model (sparse/) are not.
+  const fs::path ds = fs::weakly_canonical(fs::absolute(dataset, ec), ec);
+  const fs::path rel = fs::weakly_canonical(fs::absolute(out, ec), ec).lexically_relative(ds);
+  const std::string first = rel.empty() ? std::string(".") : rel.begin()->string();
+  if (first == "." || first.rfind("images", 0) == 0 || first == "sparse")
+    return invalid_argument("output " + out + (first == "." ? " is the dataset folder " + dataset : " is inside the dataset's " + first + "/ folder") +
+                            ": writing there would change the dataset; choose another --out");
+  return Status::Ok();
 }
 
 uint64_t file_size_or_zero(const std::string& path) {

@@ -450,7 +450,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
   if (!platform::is_directory(a.dataset)) return invalid_argument("dataset folder " + a.dataset + " not found");
   if (a.resume && a.force) return invalid_argument("--resume and --force contradict each other; choose one");
   if (fs::exists(a.out, ec) && !fs::is_directory(a.out, ec)) return invalid_argument("output " + a.out + " is not a directory");
-  // PENDING(helper paths): GS_RETURN_IF_ERROR(check_output_outside_dataset(a.out, a.dataset));
+  GS_RETURN_IF_ERROR(check_output_outside_dataset(a.out, a.dataset));
 
   // 2. The run folder: created if new (and removed again when the run fails before training starts),
   // locked against a second writer, and brought to its last committed state.

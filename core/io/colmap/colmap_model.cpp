@@ -3,11 +3,13 @@
 // checks, the folder-level readers (which pick .bin or .txt) and pose conversion.
 #include <algorithm>
 #include <cmath>
+#include <unordered_map>
 #include <unordered_set>
 
 #include "../io_util.h"
 #include "colmap_internal.h"
 #include "gs/platform/file.h"
+#include "gs/platform/path.h"
 
 namespace gs::io {
 namespace detail {
@@ -76,7 +78,17 @@ std::string check_pose(const double qvec[4], const double tvec[3]) {
 Status check_model_links(const ColmapModel& model, const std::string& images_file, const std::string& points_file) {
   std::unordered_set<uint32_t> cameras, images;
   for (const ColmapCamera& c : model.cameras) cameras.insert(c.id);
+  // Image names become file names (the images read, the renders written): each must stay inside
+  // the images folder, and two images may not share one.
+  std::unordered_map<std::string, uint32_t> names;
   for (const ColmapImage& im : model.images) {
+    if (std::string why = platform::relative_name_problem(im.name); !why.empty())
+      return parse_error(images_file + ": image " + std::to_string(im.id) + " is named '" + im.name +
+                         "', which cannot be a file below the images folder: " + why);
+    const auto [it, fresh] = names.emplace(im.name, im.id);
+    if (!fresh)
+      return parse_error(images_file + ": images " + std::to_string(it->second) + " and " + std::to_string(im.id) +
+                         " have the same name '" + im.name + "'");
     if (!cameras.count(im.camera_id))
       return parse_error(images_file + ": image " + std::to_string(im.id) + " ('" + im.name + "') refers to camera " +
                          std::to_string(im.camera_id) + ", which is not in the cameras file");

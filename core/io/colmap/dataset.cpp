@@ -4,7 +4,9 @@
 // into a PINHOLE camera with the same fx, fy, cx, cy, so the renderer only ever sees pinholes.
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <map>
+#include <system_error>
 
 #include "../io_util.h"
 #include "colmap_internal.h"
@@ -113,8 +115,17 @@ Expected<Dataset> load(const std::string& root, const DatasetOptions& options) {
     const ColmapImage& im = *order[i];
     const CameraPlan& plan = plans.at(im.camera_id);
     const std::string path = detail::join_path(images_dir, im.name);
-    if (!platform::file_exists(path))
+    if (!platform::file_exists(path)) {
+      // A symbolic link that does not resolve (a loop, a missing target) is not "not found": the
+      // OS's reason is what the user needs.
+      std::error_code ec;
+      if (std::filesystem::is_symlink(std::filesystem::symlink_status(path, ec))) {
+        auto read = read_image(path, 3);
+        return io_error(path + ": image " + std::to_string(im.id) + " of the COLMAP model is a symbolic link that does not resolve (" +
+                        (read.ok() ? std::string("unreadable") : read.status().message()) + ")");
+      }
       return io_error(path + ": image file not found (image " + std::to_string(im.id) + " of the COLMAP model)");
+    }
     auto img = read_image(path, 3);
     if (!img.ok()) return img.status();
     if (img->width != plan.width || img->height != plan.height)

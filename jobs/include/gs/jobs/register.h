@@ -34,6 +34,10 @@ struct RegisterRunOptions {
   std::string views, init_noise = "rot:10,trans:0.1", out;
 };
 
+// register_image refuses a start pose whose camera centre is farther than this many scene radii from
+// the centre of the model's anchors (a wrong unit or order: nothing of the scene would be in view).
+inline constexpr double kMaxStartDistanceInRadii = 1000;
+
 // The solver options these resolve to (errors: an unknown solver, downscale < 1).
 Expected<pose::RegisterOptions> register_options(const RegisterRunOptions& options);
 

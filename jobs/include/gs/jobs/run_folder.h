@@ -67,6 +67,12 @@ std::string default_lpips_dir();
 Expected<std::unique_ptr<metrics::LpipsAlex>> load_lpips(const std::string& explicit_dir, int threads,
                                                          std::string* note);
 
+// Refuses an output folder that exists as a file, that is the dataset folder, or that lies inside
+// the dataset's images*/ or sparse/ folders (symbolic links resolved): renders or a run there would
+// change the dataset. A sub-folder of its own ("DATASET/renders") is allowed. Render and train call
+// it before writing anything.
+Status check_output_outside_dataset(const std::string& out, const std::string& dataset);
+
 std::string absolute_path(const std::string& path);
 uint64_t file_size_or_zero(const std::string& path);
 

@@ -37,6 +37,11 @@ struct EvalOptions {
   bool psnr_only = false;                     // quick evaluation during training (no SSIM / LPIPS / PNG)
 };
 
+// The render file of each view: <dir>/<image name with .png>, sub-folders kept. Refused with a
+// message when a name would lead outside dir (gs/platform/path.h) or two views would write one file
+// ("a.jpg" and "a.png"). evaluate_views and the render job name their PNGs with this.
+Expected<std::vector<std::string>> render_png_paths(const std::string& dir, const std::vector<const io::DatasetView*>& views);
+
 Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<const io::DatasetView*>& views,
                                     const EvalOptions& options, platform::ThreadPool* pool);
 
