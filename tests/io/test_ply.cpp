@@ -122,6 +122,10 @@ TEST_CASE("malformed PLY files are refused with a reason") {
   check_error(parse("plx" + good.substr(3)).status(), {"t.ply", "not a PLY"});
   check_error(parse("ply\nformat ascii 1.0\nelement vertex 0\n" + props + "end_header\n").status(), {"ascii"});
   check_error(parse(header(props, 3)).status(), {"truncated"});
+  // A vertex count lower than the data: the third vertex would be dropped silently, so it is refused.
+  std::string short_count = header(props, 2);
+  short_count += good.substr(header(props, 3).size());
+  check_error(parse(short_count).status(), {"t.ply", "declares 2 vertices", "56 bytes would be ignored"});
 
   std::string rest10;
   for (int j = 0; j < 10; ++j) rest10 += "property float f_rest_" + std::to_string(j) + "\n";

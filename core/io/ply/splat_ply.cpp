@@ -106,6 +106,13 @@ Status parse_header(const uint8_t* data, size_t size, const std::string& src, He
     return parse_error(src + ": truncated: " + std::to_string(h->count) + " vertices of " + std::to_string(stride) +
                        " bytes need " + std::to_string(h->count * stride) + " bytes after the header, the file has " +
                        std::to_string(size - h->bytes));
+  // More data than the header declares: a vertex count that is too low would silently drop the
+  // rest of the scene, so it is an error too.
+  if (h->count * stride != size - h->bytes)
+    return parse_error(src + ": the header declares " + std::to_string(h->count) + " vertices of " + std::to_string(stride) +
+                       " bytes (" + std::to_string(h->count * stride) + " bytes), but " + std::to_string(size - h->bytes) +
+                       " bytes follow it: " + std::to_string(size - h->bytes - h->count * stride) +
+                       " bytes would be ignored (is the vertex count wrong?)");
   return Status::Ok();
 }
 
