@@ -11,7 +11,8 @@ set -euo pipefail
 
 native=(cmake ninja-build g++ pkg-config libeigen3-dev libxsimd-dev libstb-dev doctest-dev libembree-dev libtbb-dev
         libbenchmark-dev libcli11-dev nlohmann-json3-dev
-        dpkg-dev file python3)  # cpack -G DEB (dpkg-shlibdeps) and scripts/check-install.sh
+        dpkg-dev file python3  # cpack -G DEB (dpkg-shlibdeps) and scripts/check-install.sh
+        clang libclang-rt-14-dev)  # libFuzzer and ThreadSanitizer builds (scripts/fuzz.sh, scripts/tsan.sh)
 # Capture and ingestion: video decoding (FFmpeg's libraries), libcamera, and the ffmpeg and colmap
 # commands (`hbgs ingest` runs COLMAP; the end-to-end ingest test encodes its video with ffmpeg).
 capture=(libavformat-dev libavcodec-dev libavutil-dev libswscale-dev libcamera-dev ffmpeg colmap)

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "gs/io/image.h"
+#include "gs/platform/file.h"
 #include "io_test_util.h"
 
 namespace gs::io {
@@ -101,6 +102,26 @@ TEST_CASE("hostile image bytes give errors and not crashes") {
     for (int k = 0; k < 4; ++k) bytes[8 + rng() % (bytes.size() - 8)] = uint8_t(rng());
     auto r = decode_image(bytes.data(), bytes.size(), 3, "fuzz.png");
     if (r.ok()) CHECK(r->pixels.size() == size_t(r->width) * size_t(r->height) * 3);
+  }
+}
+
+TEST_CASE("fuzz findings: JPEG Huffman tables over 256 codes and PNG chunks longer than the file are refused before stb") {
+  // Inputs found by fuzz/fuzz_image (kept in its seed corpus): Debian 12's stb_image wrote past a
+  // Huffman table's arrays, and sized a buffer from a PNG chunk's declared length (1.8 GB).
+  const struct {
+    const char* file;
+    const char* expect;
+  } cases[] = {{"dht_overflow.jpg", "more than 256"},
+               {"dht_overflow_truncated.jpg", "declares 1183 codes, more than 256"},
+               {"dht_overflow_header_cut.jpg", "more than 256"},
+               {"png_huge_idat.png", "corrupt PNG: chunk 'IDAT'"}};
+  for (const auto& c : cases) {
+    const std::string path = std::string(GS_SOURCE_DIR) + "/fuzz/corpus/image/" + c.file;
+    const Expected<std::vector<uint8_t>> bytes = platform::read_file(path);
+    REQUIRE_MESSAGE(bytes.ok(), bytes.status().to_string());
+    const Expected<Image8> img = decode_image(bytes->data(), bytes->size(), 3, c.file);
+    REQUIRE_FALSE(img.ok());
+    CHECK_MESSAGE(img.status().message().find(c.expect) != std::string::npos, img.status().message());
   }
 }
 

@@ -4,6 +4,7 @@
 #define STBI_NO_STDIO
 #include <stb_image.h>
 
+#include <algorithm>
 #include <climits>
 #include <cstring>
 
@@ -29,6 +30,66 @@ bool png_sides(const uint8_t* d, size_t n, uint64_t* w, uint64_t* h) {
   return true;
 }
 
+// Debian 12's stb_image builds each JPEG Huffman table into fixed arrays of 256 codes without
+// checking the table's declared code count, so a table declaring more (the 16 counts sum past 256)
+// writes past the array (found by fuzz/fuzz_image). Every DHT segment, also those between the
+// scans of a progressive JPEG, is checked here before stb sees the file.
+Status check_jpeg_huffman_tables(const uint8_t* d, size_t n, const std::string& source) {
+  size_t p = 2;  // after SOI
+  while (p + 4 <= n) {
+    if (d[p] != 0xff) {  // entropy-coded data between markers
+      ++p;
+      continue;
+    }
+    const uint8_t m = d[p + 1];
+    if (m == 0xff) {  // fill byte
+      ++p;
+      continue;
+    }
+    if (m == 0x00 || m == 0x01 || (m >= 0xd0 && m <= 0xd7)) {  // stuffed 0xff, TEM, RSTn: no length
+      p += 2;
+      continue;
+    }
+    if (m == 0xd9) break;  // EOI
+    const size_t len = (size_t(d[p + 2]) << 8) | d[p + 3];
+    if (len < 2) break;  // stb reports it
+    // A truncated DHT is checked as far as it goes (stb builds its tables before it notices, reading
+    // zeros past the end).
+    if (m == 0xc4) {
+      size_t q = p + 4;
+      const size_t end = std::min(p + 2 + len, n);
+      while (q < end) {
+        size_t codes = 0;  // stb reads bytes past the end of the file as 0
+        for (size_t i = q + 1; i <= q + 16 && i < n; ++i) codes += d[i];
+        if (codes > 256)
+          return parse_error(source + ": corrupt JPEG: a Huffman table (DHT at byte " + std::to_string(p) + ") declares " +
+                             std::to_string(codes) + " codes, more than 256");
+        q += 17 + codes;
+      }
+    }
+    if (p + 2 + len > n) break;  // truncated: stb reports it
+    p += 2 + len;
+  }
+  return Status::Ok();
+}
+
+// stb_image sizes its buffer for a PNG data chunk from the chunk's declared length before reading
+// it, so a 2 KB file declaring a 1.8 GB IDAT made it allocate 1.8 GB (found by fuzz/fuzz_image).
+// Every chunk must fit in the file.
+Status check_png_chunks(const uint8_t* d, size_t n, const std::string& source) {
+  size_t p = 8;  // after the signature
+  while (p + 8 <= n) {
+    const uint64_t len = (uint64_t(d[p]) << 24) | (uint64_t(d[p + 1]) << 16) | (uint64_t(d[p + 2]) << 8) | d[p + 3];
+    const std::string type(reinterpret_cast<const char*>(d + p + 4), 4);
+    if (len > n - p - 8)
+      return parse_error(source + ": corrupt PNG: chunk '" + type + "' at byte " + std::to_string(p) + " declares " +
+                         std::to_string(len) + " bytes, but only " + std::to_string(n - p - 8) + " follow");
+    if (type == "IEND") break;
+    p += 12 + size_t(len);  // length, type, data, CRC
+  }
+  return Status::Ok();
+}
+
 Status bad_size(const std::string& source, uint64_t w, uint64_t h) {
   return unsupported(source + ": image size " + std::to_string(w) + "x" + std::to_string(h) + " outside 1.." +
                      std::to_string(kMaxImageSide) + " per side");
@@ -43,6 +104,8 @@ Expected<Image8> decode(const uint8_t* data, size_t size, int channels, const st
   if (size > size_t(INT_MAX)) return unsupported(source + ": image file larger than 2 GiB");
   const int len = int(size);
 
+  if (looks_like_jpeg(data, size)) GS_RETURN_IF_ERROR(check_jpeg_huffman_tables(data, size, source));
+  if (looks_like_png(data, size)) GS_RETURN_IF_ERROR(check_png_chunks(data, size, source));
   uint64_t pw = 0, ph = 0;
   if (png_sides(data, size, &pw, &ph) && (pw == 0 || ph == 0 || pw > uint64_t(kMaxImageSide) || ph > uint64_t(kMaxImageSide)))
     return bad_size(source, pw, ph);
