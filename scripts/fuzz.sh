@@ -51,7 +51,7 @@ for h in "${harnesses[@]}"; do
   t1=$SECONDS
   # -rss_limit_mb / -malloc_limit_mb: above the largest image hbgs accepts (16384 x 16384 RGBA, 1 GiB); a
   # parser that sizes buffers from a header must refuse a larger count before allocating.
-  if ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  if ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1:suppressions=$PWD/fuzz/ubsan.supp \
      "$bin" "$corpus" "${budget[@]}" -timeout=20 -rss_limit_mb=3072 -malloc_limit_mb=2048 \
      -artifact_prefix="$artifacts" -print_final_stats=1 >"$work/$h/log" 2>&1; then
     runs=$(grep -oE "stat::number_of_executed_units: *[0-9]+" "$work/$h/log" | grep -oE "[0-9]+$" || echo "?")
