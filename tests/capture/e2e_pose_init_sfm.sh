@@ -23,7 +23,7 @@ import json, sys
 r = next(iter(json.load(open(sys.argv[1])).values()))["poses"]
 sfm, final, given = r["sfm_init"], r["train_final"], r["train_input"]
 print(f"given poses: {given['rotation_mean_deg']:.3f} deg; after SfM init: {sfm['errors']['rotation_mean_deg']:.3f} deg "
-      f"({sfm['registered']} of {sfm['views']} registered); after point alignment: "
+      f"({sfm['registered']} of {sfm['views']} registered, SfM attempts {sfm.get('attempts', 1)}); after point alignment: "
       f"{r['point_alignment']['errors']['rotation_mean_deg']:.3f} deg; final: {final['rotation_mean_deg']:.3f} deg, "
       f"{100 * final['translation_mean_fraction_of_radius']:.3f} % of the radius")
 ok = (given["rotation_mean_deg"] > 10 and sfm["registered"] == sfm["views"] and final["rotation_mean_deg"] < 0.2
