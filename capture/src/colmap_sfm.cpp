@@ -57,6 +57,14 @@ Status run_stage(const std::vector<std::string>& argv, const std::string& stage,
 
 std::string thread_arg(int threads) { return std::to_string(threads > 0 ? threads : -1); }
 
+// COLMAP's seed for its random sampling (RANSAC, initial pair trials), given explicitly so a run does
+// not depend on the default of whichever COLMAP version is installed (Debian 12's 3.8: 0). In 3.8 it
+// only seeds the main thread's generator: the worker threads (matching verification, the mapper
+// controller) seed their own thread-local one from the clock on first use, so two runs can still
+// differ, even with one thread; callers that need agreement check the result (jobs/src/train.cpp
+// retries a suspect SfM pose initialisation).
+constexpr const char* kColmapSeed = "0";
+
 }  // namespace
 
 Expected<Matcher> parse_matcher(const std::string& name) {
@@ -93,7 +101,7 @@ Status run_colmap_reconstruction(const std::string& frames_dir, const std::strin
   int extracted = 0;
   if (progress) progress("[1/4] COLMAP feature extraction on " + std::to_string(rep.images) + " frames (CPU SIFT)");
   std::vector<std::string> extract = {
-      colmap, "feature_extractor", "--database_path", db, "--image_path", frames_dir, "--ImageReader.single_camera", "1",
+      colmap, "feature_extractor", "--database_path", db, "--image_path", frames_dir, "--random_seed", kColmapSeed, "--ImageReader.single_camera", "1",
       "--ImageReader.camera_model", o.camera_model, "--SiftExtraction.use_gpu", "0", "--SiftExtraction.num_threads",
       thread_arg(o.threads), "--SiftExtraction.max_image_size", std::to_string(o.max_image_size)};
   const bool fixed = !o.camera_params.empty();
@@ -110,14 +118,14 @@ Status run_colmap_reconstruction(const std::string& frames_dir, const std::strin
   const bool sequential = o.matcher == Matcher::kSequential;
   if (progress) progress(std::string("[2/4] COLMAP matching (") + (sequential ? "sequential" : "exhaustive") + ")");
   std::vector<std::string> match = {colmap, sequential ? "sequential_matcher" : "exhaustive_matcher", "--database_path",
-                                    db, "--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads",
+                                    db, "--random_seed", kColmapSeed, "--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads",
                                     thread_arg(o.threads)};
   GS_RETURN_IF_ERROR(run_stage(match, "matching", log_path, progress, {}, &rep.seconds_matching));
 
   int registered_so_far = 0;
   if (progress) progress("[3/4] COLMAP mapping");
   std::vector<std::string> map = {colmap, "mapper", "--database_path", db, "--image_path", frames_dir, "--output_path",
-                                  sparse, "--Mapper.num_threads", thread_arg(o.threads)};
+                                  sparse, "--random_seed", kColmapSeed, "--Mapper.num_threads", thread_arg(o.threads)};
   if (o.permissive_registration)
     map.insert(map.end(), {"--Mapper.abs_pose_min_num_inliers", "12", "--Mapper.abs_pose_min_inlier_ratio", "0.1"});
   if (fixed)

@@ -22,10 +22,17 @@ python3 - "$work/run/results.json" <<'PY'
 import json, sys
 r = next(iter(json.load(open(sys.argv[1])).values()))["poses"]
 sfm, final, given = r["sfm_init"], r["train_final"], r["train_input"]
+align = r["point_alignment"]
 print(f"given poses: {given['rotation_mean_deg']:.3f} deg; after SfM init: {sfm['errors']['rotation_mean_deg']:.3f} deg "
       f"({sfm['registered']} of {sfm['views']} registered, SfM attempts {sfm.get('attempts', 1)}); after point alignment: "
-      f"{r['point_alignment']['errors']['rotation_mean_deg']:.3f} deg; final: {final['rotation_mean_deg']:.3f} deg, "
-      f"{100 * final['translation_mean_fraction_of_radius']:.3f} % of the radius")
+      f"{align['errors']['rotation_mean_deg']:.3f} deg (median move {align.get('median_move_deg', float('nan')):.3f} deg); "
+      f"final: {final['rotation_mean_deg']:.3f} deg, {100 * final['translation_mean_fraction_of_radius']:.3f} % of the radius")
+# Limits from measured spreads (2 cores, a build and other tests alongside). A sound COLMAP
+# reconstruction ends at 0.048-0.049 degrees and 0.059-0.060 % of the radius (every passing run so
+# far: the point alignment lands on the same optimum whatever COLMAP's exact poses, 0.87-1.04 degrees
+# after SfM); a corrupted one that is not retried ends at about 5.5 degrees and 6 % (seen: 5.52
+# degrees, 6.04 %). The 0.2 degree / 0.5 % limits are 4x and 8x the good figures and far below a
+# bad one, so a regression in the SfM initialisation, the point alignment or pose refinement shows.
 ok = (given["rotation_mean_deg"] > 10 and sfm["registered"] == sfm["views"] and final["rotation_mean_deg"] < 0.2
       and final["translation_mean_fraction_of_radius"] < 0.005)
 sys.exit(0 if ok else 1)
