@@ -8,7 +8,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <limits>
 #include <set>
 #include <sstream>
 #include <system_error>
@@ -284,7 +283,6 @@ struct TrainSession::Impl {
   std::vector<std::string> train_names;
   pose::PoseErrors input_errors;
   nlohmann::json sfm_init, point_alignment;  // stage reports for results.json
-  double point_align_median_move_deg = 0;    // of the last align_to_points
   std::unique_ptr<platform::ThreadPool> pool;
   const simd::KernelTable* kernels = nullptr;
   std::unique_ptr<model::Trainer> trainer;
@@ -353,12 +351,10 @@ struct TrainSession::Impl {
     }
     pose::PointAlignReport rep;
     const size_t npoints = dataset.points_xyz.size() / 3;
-    point_align_median_move_deg = 0;
     GS_RETURN_IF_ERROR(pose::align_poses_to_points(dataset.points_xyz.data(),
                                                     dataset.points_rgb.empty() ? nullptr : dataset.points_rgb.data(), npoints,
                                                     images, &cams, pao, pool.get(), &rep));
     set_train_poses(cams);
-    point_align_median_move_deg = rep.median_move_deg;
     const pose::PoseErrors e = errors(poses_of(cams), true);
     nlohmann::json reverted = nlohmann::json::array();
     for (int v : rep.reverted_views) reverted.push_back(train_names[size_t(v)]);
@@ -423,52 +419,8 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
   for (const io::DatasetView* v : d.train_views) input.push_back(v->camera.pose);
   d.input_errors = d.errors(input, true);
   d.pool = std::make_unique<platform::ThreadPool>(options.threads);
-  if (options.optimize_poses && options.pose_init == "sfm" && !options.resume) {
-    // COLMAP now and then returns a reconstruction with some views badly placed (on the built-in
-    // scene about 1 run in 5: mean 8.5 degrees, max 41, against the truth after the best Sim(3);
-    // its matching is not reproducible in Debian's COLMAP, even single-threaded with --random_seed).
-    // The photometric alignment to the SfM points then moves the views a median of several degrees,
-    // where a sound reconstruction moves them a fraction of one (0.05-0.16 degrees on the real
-    // scenes, under 0.5 on the built-in one), so SfM runs again, up to kSfmAttempts times, and the
-    // attempt whose views moved least is kept.
-    constexpr int kSfmAttempts = 3;
-    constexpr double kSuspectMedianMoveDeg = 2.0;
-    std::vector<Camera> given;
-    for (const io::DatasetView* v : d.train_views) given.push_back(v->camera);
-    std::vector<Camera> best_poses;
-    nlohmann::json best_sfm, best_align;
-    double best_move = std::numeric_limits<double>::infinity();
-    int attempts = 0;
-    for (int attempt = 1; attempt <= kSfmAttempts; ++attempt) {
-      attempts = attempt;
-      if (attempt > 1) d.set_train_poses(given);
-      GS_RETURN_IF_ERROR(d.init_by_sfm(work_dir, say));
-      if (!options.point_align) break;
-      GS_RETURN_IF_ERROR(d.align_to_points(say));
-      const double move = d.point_align_median_move_deg;
-      if (move < best_move) {
-        best_move = move;
-        best_poses.clear();
-        for (const io::DatasetView* v : d.train_views) best_poses.push_back(v->camera);
-        best_sfm = d.sfm_init;
-        best_align = d.point_alignment;
-      }
-      if (move <= kSuspectMedianMoveDeg) break;
-      say(text_event(TrainEvent::kNote, "the photometric alignment moved the views a median " + fixed(move, 2) +
-                                            " deg from the SfM poses: COLMAP's reconstruction looks wrong" +
-                                            (attempt < kSfmAttempts ? "; running SfM again (attempt " + std::to_string(attempt + 1) + " of " +
-                                                                          std::to_string(kSfmAttempts) + ")"
-                                                                    : "; keeping the attempt whose views moved least")));
-    }
-    if (options.point_align) {
-      d.set_train_poses(best_poses);
-      d.sfm_init = best_sfm;
-      d.point_alignment = best_align;
-      d.sfm_init["attempts"] = attempts;
-    }
-  } else if (options.optimize_poses && options.point_align && !options.resume) {
-    GS_RETURN_IF_ERROR(d.align_to_points(say));
-  }
+  if (options.optimize_poses && options.pose_init == "sfm" && !options.resume) GS_RETURN_IF_ERROR(d.init_by_sfm(work_dir, say));
+  if (options.optimize_poses && options.point_align && !options.resume) GS_RETURN_IF_ERROR(d.align_to_points(say));
 
   d.kernels = options.isa.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(options.isa.c_str());
   if (!d.kernels) return invalid_argument("--isa: kernel table '" + options.isa + "' is not compiled in or not supported by this CPU");
