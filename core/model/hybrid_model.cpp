@@ -78,9 +78,10 @@ Status ModelConfig::validate() const {
 
 uint64_t HybridModel::file_bytes() const { return uint64_t(serialize_model(*this).size()); }
 
-static void allocate_rows(HybridModel* m) {
+// Rows for `cap` anchors: the budget when training, the stored count when loading (a file that
+// declares a 50-million-anchor budget but holds 100 anchors gets 100 rows).
+static void allocate_rows(HybridModel* m, size_t cap) {
   const ModelConfig& c = m->config;
-  const size_t cap = c.anchor_capacity();
   m->positions.assign(cap * 3, 0.0f);
   m->offsets.assign(cap * size_t(c.k) * 3, 0.0f);
   m->log_scales.assign(cap * 6, 0.0f);
@@ -110,7 +111,7 @@ Expected<HybridModel> create_model(const ModelConfig& config, const float* xyz, 
     return capacity_exceeded("model: voxel size " + std::to_string(anchors->voxel_size) + " gives " + std::to_string(M) +
                              " anchors, more than the budget of " + std::to_string(config.anchor_capacity()) +
                              " (raise --max-anchors / --max-gaussians or the voxel size)");
-  allocate_rows(&m);
+  allocate_rows(&m, config.anchor_capacity());
   m.anchor_count = M;
   m.voxel_size = anchors->voxel_size;
   m.scene_extent = scene_extent;
@@ -199,7 +200,12 @@ Expected<HybridModel> deserialize_model(const uint8_t* data, size_t size, const 
   if (M > c.anchor_capacity())
     return parse_error(source + ": " + std::to_string(M) + " anchors exceed the model's own budget of " +
                        std::to_string(c.anchor_capacity()));
-  allocate_rows(&m);
+  // The rows must be in the file before they are allocated.
+  const uint64_t row_bytes = (3 + uint64_t(c.k) * 3 + 6 + uint64_t(c.feature_dim) + (has_image_mlp(c) ? uint64_t(kImageRawDim) : 0)) * 4;
+  if (M > (size - r.offset()) / row_bytes)
+    return parse_error(source + ": " + std::to_string(M) + " anchors of " + std::to_string(row_bytes) + " bytes do not fit in the " +
+                       std::to_string(size - r.offset()) + " bytes left (truncated or corrupt)");
+  allocate_rows(&m, size_t(M));
   m.anchor_count = size_t(M);
   r.floats(m.positions.data(), M * 3, "anchor positions");
   r.floats(m.offsets.data(), M * size_t(c.k) * 3, "anchor offsets");

@@ -44,15 +44,22 @@ int run(const std::string& command) {
   return std::system((command + " > /dev/null 2>&1").c_str());
 }
 
+// One folder per process: ctest runs the cases of this file as separate processes, in parallel.
 const fs::path& tmp_root() {
-  static const fs::path root = [] {
-    const fs::path p = fs::path(GS_TEST_TMP) / "faults";
-    std::error_code ec;
-    fs::remove_all(p, ec);
-    fs::create_directories(p);
-    return p;
-  }();
-  return root;
+  struct Root {
+    fs::path path = fs::path(GS_TEST_TMP) / ("faults_" + std::to_string(long(::getpid())));
+    Root() {
+      std::error_code ec;
+      fs::remove_all(path, ec);
+      fs::create_directories(path);
+    }
+    ~Root() {
+      std::error_code ec;
+      fs::remove_all(path, ec);
+    }
+  };
+  static const Root root;
+  return root.path;
 }
 
 // A small generated scene (64x48, 8 views of which the synth's test split holds some).
