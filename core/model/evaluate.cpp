@@ -97,6 +97,12 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
     GS_RETURN_IF_ERROR(platform::make_dirs(options.render_dir));
   }
 
+  // LPIPS-Alex needs 31 px a side: smaller views are evaluated without it (for every view, so the
+  // mean stays over one set), instead of failing a whole training run at its last evaluation.
+  bool small = false;
+  for (const io::DatasetView* v : views)
+    small = small || v->camera.intr.width < metrics::LpipsAlex::kMinSide || v->camera.intr.height < metrics::LpipsAlex::kMinSide;
+  const metrics::LpipsAlex* lpips = small ? nullptr : options.lpips;
   ModelRenderer renderer;
   GS_RETURN_IF_ERROR(renderer.init(model, max_w, max_h, pool));
   std::vector<float> rgb(size_t(max_w) * size_t(max_h) * 3);
@@ -116,8 +122,8 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
     m.psnr = metrics::psnr_u8(img.pixels.data(), gt, w, h);
     if (full) {
       m.ssim = metrics::ssim_u8(img.pixels.data(), gt, w, h);
-      if (options.lpips) {
-        Expected<double> d = options.lpips->distance(img.pixels.data(), gt, w, h);
+      if (lpips) {
+        Expected<double> d = lpips->distance(img.pixels.data(), gt, w, h);
         if (!d.ok()) return Status(d.status().code(), "evaluation: view " + v->name + ": " + d.status().message());
         m.lpips = *d;
       }
@@ -132,7 +138,7 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
   }
   result.psnr = mean(result.views, &ViewMetrics::psnr);
   result.ssim = mean(result.views, &ViewMetrics::ssim);
-  result.lpips = full && options.lpips ? mean(result.views, &ViewMetrics::lpips) : -1.0;
+  result.lpips = full && lpips ? mean(result.views, &ViewMetrics::lpips) : -1.0;
   result.render_ms_median = median(render_ms);
   return result;
 }

@@ -626,6 +626,8 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     std::string merge_note;
     GS_RETURN_IF_ERROR(write_eval_files(a.out, method, *r, extra, &merge_note));
     if (!merge_note.empty()) note(merge_note);
+    if (net && r->lpips < 0 && it == a.iterations)
+      note("LPIPS not computed: the test views are smaller than " + std::to_string(metrics::LpipsAlex::kMinSide) + " px a side");
     if (a.eval_every > 0) add_psnr_row(it, r->psnr);
     final_eval = std::move(r).value();
     return Status::Ok();
