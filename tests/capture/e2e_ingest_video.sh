@@ -27,16 +27,19 @@ if "$hbgs" ingest "$work/clip.mp4" --out "$work/ds" --frames 24 2>"$work/refused
   exit 1
 fi
 grep -q "already holds a dataset" "$work/refused.txt"
-# Margins from measured spreads (6 runs, 2 cores with a build and other tests alongside; COLMAP's
-# matching and mapping are not reproducible, see capture/src/colmap_sfm.cpp): the absolute rotation
-# error is a nearly constant offset over the path (mean ~ median ~ max), 1.12-1.47 degrees,
-# centres 0.68-0.85 % of the radius. 2 degrees is 0.5 above the highest (about 5 standard deviations
-# above the mean), 2 % over twice the highest; a reconstruction that loses track, misplaces frames
-# or gets the focal length wrong is several degrees and percent off.
-"$hbgs" compare-poses "$work/path/true_poses" "$work/ds" --json "$work/poses.json" --max-rot-deg 2 \
+# Margins from measured spreads: 27 runs (2 cores, a build and other tests alongside, 20 of them in
+# a row by scripts/repeat-e2e.sh); COLMAP's features and matches differ from run to run whatever
+# the seed and thread count (capture/src/colmap_sfm.cpp). The absolute rotation error is a nearly
+# constant offset of the whole path (mean ~ median ~ max while consecutive frames agree to about
+# 0.1 degree), 0.99-1.75 degrees, mean 1.23, sd 0.15; the 20 runs in a row had the limit at 2. Centres:
+# 0.62-0.85 % of the radius. The 2.5 degree limit is 0.75 above the highest seen (8 sd above the
+# mean), 2 % over twice the highest; a reconstruction that loses track, misplaces frames or gets
+# the focal length wrong is several degrees and percent off.
+"$hbgs" compare-poses "$work/path/true_poses" "$work/ds" --json "$work/poses.json" --max-rot-deg 2.5 \
   --max-centre-frac 0.02
-# Consecutive frames relative to each other (independent of the Sim(3) fit): measured mean
-# 0.094-0.130 degrees; jitter or a wrongly registered frame in the path raises it past 0.3.
+# Consecutive frames relative to each other (independent of the Sim(3) fit, so the sharper check of
+# the reconstruction itself): measured mean 0.089-0.137 degrees (27 runs); jitter or a wrongly
+# registered frame in the path raises it past 0.3.
 python3 - "$work/poses.json" <<'PY'
 import json, sys
 rel = json.load(open(sys.argv[1]))["relative_rotation_deg"]["mean"]
@@ -50,7 +53,7 @@ import json, sys
 r = json.load(open(sys.argv[1]))
 psnr = next(iter(r.values()))["PSNR"]  # one entry per method, e.g. "ours_300"
 print(f"test PSNR after 300 iterations on the ingested dataset: {psnr:.2f} dB (limit 22)")
-# Measured 24.38-25.48 dB (6 runs). 22 dB is about 2.5 dB under the lowest: a training or ingest
+# Measured 24.31-25.79 dB (27 runs, sd 0.34). 22 dB is 2.3 dB under the lowest: a training or ingest
 # regression (blurred or misregistered frames, a broken densification) costs more than that.
 sys.exit(0 if psnr > 22.0 else 1)
 PY
