@@ -35,6 +35,7 @@ bool png_sides(const uint8_t* d, size_t n, uint64_t* w, uint64_t* h) {
 // writes past the array (found by fuzz/fuzz_image). Every DHT segment, also those between the
 // scans of a progressive JPEG, is checked here before stb sees the file.
 Status check_jpeg_huffman_tables(const uint8_t* d, size_t n, const std::string& source) {
+  bool defined[2][4] = {};  // [class: 0 DC, 1 AC][table id], by a DHT so far
   size_t p = 2;  // after SOI
   while (p + 4 <= n) {
     if (d[p] != 0xff) {  // entropy-coded data between markers
@@ -64,7 +65,24 @@ Status check_jpeg_huffman_tables(const uint8_t* d, size_t n, const std::string& 
         if (codes > 256)
           return parse_error(source + ": corrupt JPEG: a Huffman table (DHT at byte " + std::to_string(p) + ") declares " +
                              std::to_string(codes) + " codes, more than 256");
+        if ((d[q] >> 4) <= 1 && (d[q] & 15) <= 3) defined[d[q] >> 4][d[q] & 15] = true;
         q += 17 + codes;
+      }
+    }
+    // A scan that decodes with a Huffman table no DHT defined makes stb read its never-initialised
+    // table memory (found by fuzz/fuzz_image: a negative symbol index, varying from run to run).
+    // DC scans (Ss = 0) that are not refinements (Ah = 0) use DC tables; scans with Se > 0 use AC tables.
+    if (m == 0xda && p + 2 + len <= n && len >= 3) {
+      const size_t ns = d[p + 4];
+      if (len >= 6 + 2 * ns) {
+        const uint8_t ss = d[p + 5 + 2 * ns], se = d[p + 6 + 2 * ns], ah = d[p + 7 + 2 * ns] >> 4;
+        for (size_t c = 0; c < ns; ++c) {
+          const uint8_t tables = d[p + 6 + 2 * c];
+          const int dc = tables >> 4, ac = tables & 15;
+          if ((ss == 0 && ah == 0 && (dc > 3 || !defined[0][dc])) || (se > 0 && (ac > 3 || !defined[1][ac])))
+            return parse_error(source + ": corrupt JPEG: the scan at byte " + std::to_string(p) +
+                               " uses a Huffman table that no DHT segment defines");
+        }
       }
     }
     if (p + 2 + len > n) break;  // truncated: stb reports it
