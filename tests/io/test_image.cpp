@@ -115,7 +115,8 @@ TEST_CASE("fuzz findings: JPEG Huffman tables over 256 codes and PNG chunks long
                {"dht_overflow_truncated.jpg", "declares 1183 codes, more than 256"},
                {"dht_overflow_header_cut.jpg", "more than 256"},
                {"png_huge_idat.png", "corrupt PNG: chunk 'IDAT'"},
-               {"scan_undefined_table.jpg", "uses a Huffman table that no DHT segment defines"}};
+               {"scan_undefined_table.jpg", "uses a Huffman table that no DHT segment defines"},
+               {"huff_decode_negative_index.jpg", "uses a Huffman table that no DHT segment defines"}};
   for (const auto& c : cases) {
     const std::string path = std::string(GS_SOURCE_DIR) + "/fuzz/corpus/image/" + c.file;
     const Expected<std::vector<uint8_t>> bytes = platform::read_file(path);
