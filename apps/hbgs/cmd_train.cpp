@@ -140,6 +140,12 @@ Command add_train_command(CLI::App& parent) {
   sub->add_option("--voxel-size", o->voxel_size, "Anchor voxel size in world units (0: automatic)")
       ->capture_default_str()
       ->check(CLI::Range(0.0f, 1e9f));
+  sub->add_option("--offsets", o->offsets, "Neural Gaussians (offsets) per anchor, k")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64));
+  sub->add_option("--feature-dim", o->feature_dim, "Width of the learned anchor feature")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
   sub->add_option("--seed", o->seed, "Seed (MLP initialisation, view order)")->capture_default_str();
   sub->add_option("--threads", o->threads, "Worker threads (0: all CPUs)")->capture_default_str()->check(CLI::Range(0, 4096));
   sub->add_option("--max-width", o->max_width, "Downscale views to at most this width (0: full size)")

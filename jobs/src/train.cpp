@@ -146,6 +146,8 @@ void for_each_recorded_option(TrainRunOptions* a, Visit&& visit) {
   visit("max-anchors", &a->max_anchors, true);
   visit("max-gaussians", &a->max_gaussians, true);
   visit("voxel-size", &a->voxel_size, true);
+  visit("offsets", &a->offsets, true);
+  visit("feature-dim", &a->feature_dim, true);
   visit("seed", &a->seed, true);
   visit("pose-noise", &a->pose_noise, true);
   visit("pose-noise-on", &a->pose_noise_on, true);
@@ -215,6 +217,7 @@ std::string run_json(const TrainRunOptions& a) {
   j["options"] = {{"iterations", a.iterations},         {"image-features", a.image_features},
                   {"max-anchors", a.max_anchors},       {"max-gaussians", a.max_gaussians},
                   {"voxel-size", a.voxel_size},         {"seed", a.seed},
+                  {"offsets", a.offsets},               {"feature-dim", a.feature_dim},
                   {"max-width", a.max_width},           {"checkpoint-every", a.checkpoint_every},
                   {"eval-every", a.eval_every},         {"save-at", a.save_at},
                   {"lpips-weights", a.lpips_weights},   {"threads", a.threads},
@@ -253,6 +256,8 @@ Expected<ResolvedTraining> resolve_training(const TrainRunOptions& a) {
   r.model.max_anchors = a.max_anchors;
   r.model.max_gaussians = a.max_gaussians;
   r.model.voxel_size = a.voxel_size;
+  r.model.k = a.offsets;
+  r.model.feature_dim = a.feature_dim;
   model::TrainOptions& t = r.train;
   t.iterations = a.iterations;
   t.schedule_iterations = a.iterations;

@@ -39,6 +39,8 @@ struct TrainRunOptions {
   std::string image_features = "paper";  // "paper" or "none" (plain Scaffold-GS)
   size_t max_anchors = 50000, max_gaussians = 500000;
   float voxel_size = 0.0f;  // anchor voxel size in world units (0: automatic)
+  int offsets = 10;         // neural Gaussians (offsets) per anchor, k
+  int feature_dim = 32;     // learned anchor feature width
   uint64_t seed = 0;        // MLP initialisation and view order
   int threads = 0;          // worker threads (0: all CPUs)
   int max_width = 0;        // downscale views to at most this width (0: as stored)
