@@ -9,6 +9,7 @@
 
 #include "byte_codec.h"
 #include "gs/model/anchors.h"
+#include "gs/model/compact_model.h"
 #include "gs/platform/file.h"
 
 namespace gs::model {
@@ -40,6 +41,8 @@ void init_mlp(Mlp* mlp, const simd::MlpShape& s, detail::SplitMix64* rng) {
 }
 
 }  // namespace
+
+simd::MlpShape model_mlp_shape(const ModelConfig& config, int id) { return mlp_shape(config, id); }
 
 const char* image_feature_mode_name(ImageFeatureMode mode) {
   return mode == ImageFeatureMode::kPaper ? "paper" : "none";
@@ -277,6 +280,13 @@ Status save_model(const HybridModel& model, const std::string& path) {
 Expected<HybridModel> load_model(const std::string& path) {
   Expected<std::vector<uint8_t>> bytes = platform::read_file(path);
   if (!bytes.ok()) return bytes.status();
+  if (is_compact_file(bytes->data(), bytes->size())) {
+    Expected<CompactModel> compact = deserialize_compact(bytes->data(), bytes->size(), path);
+    if (!compact.ok()) return compact.status();
+    HybridModel m = dequantize(*compact);
+    if (Status st = check_model_finite(m, path); !st.ok()) return parse_error(st.message());
+    return m;
+  }
   return deserialize_model(bytes->data(), bytes->size(), path);
 }
 
