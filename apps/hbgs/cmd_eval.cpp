@@ -40,7 +40,7 @@ Command add_eval_command(CLI::App& parent) {
   auto args = std::make_shared<EvalCli>();
   gs::jobs::EvaluateRunOptions* o = &args->options;
   CLI::App* sub = parent.add_subcommand("eval", "Evaluate a trained model on its dataset's test views (PSNR, SSIM, LPIPS-Alex)");
-  sub->add_option("model", o->input, "Run folder (from hbgs train) or .hbgs model file")->required();
+  sub->add_option("model", o->input, "Run folder (from hbgs train), .hbgs model file or .hbgc compact model file")->required();
   sub->add_option("--dataset", o->dataset, "COLMAP dataset (default: the one recorded in the run's run.json)");
   sub->add_option("--out", o->out, "Folder for results.json and per_view.json (default: <run>/eval)");
   sub->add_option("--max-width", o->max_width, "Downscale views to at most this width (default: as trained)")

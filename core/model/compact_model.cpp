@@ -572,26 +572,20 @@ std::vector<uint8_t> serialize_compact(const CompactModel& m) {
       }
       detail::rans_encode_bytes(s.data(), M, &w.bytes);
     }
-  if (std::getenv("HBGS_COMPACT_SIZES")) std::fprintf(stderr, "%s end at %zu\n", "before pos", w.bytes.size());  // TEMP
   for (int b = 0; b < 2; ++b) {
     for (size_t r = 0; r < M; ++r) s[r] = uint8_t(m.offset_scale[r] >> (8 * b));
     detail::rans_encode_bytes(s.data(), M, &w.bytes);
   }
-  if (std::getenv("HBGS_COMPACT_SIZES")) std::fprintf(stderr, "%s end at %zu\n", "before offscale", w.bytes.size());  // TEMP
   for (size_t ch = 0; ch < 3 * K; ++ch) detail::rans_encode_bytes(channel_bytes(m.offsets, M, 3 * K, ch).data(), M, &w.bytes);
-  if (std::getenv("HBGS_COMPACT_SIZES")) std::fprintf(stderr, "%s end at %zu\n", "before offsets", w.bytes.size());  // TEMP
   for (size_t ch = 0; ch < 6; ++ch)
     for (int b = 0; b < 2; ++b) {
       for (size_t r = 0; r < M; ++r) s[r] = uint8_t(m.log_scales[6 * r + ch] >> (8 * b));
       detail::rans_encode_bytes(s.data(), M, &w.bytes);
     }
-  if (std::getenv("HBGS_COMPACT_SIZES")) std::fprintf(stderr, "%s end at %zu\n", "before logscales", w.bytes.size());  // TEMP
   for (size_t ch = 0; ch < F; ++ch) detail::rans_encode_bytes(channel_bytes(m.features, M, F, ch).data(), M, &w.bytes);
-  if (std::getenv("HBGS_COMPACT_SIZES")) std::fprintf(stderr, "%s end at %zu\n", "before features", w.bytes.size());  // TEMP
   if (paper(c))
     for (size_t ch = 0; ch < size_t(kImageRawDim); ++ch)
       detail::rans_encode_bytes(channel_bytes(m.image_raw, M, kImageRawDim, ch).data(), M, &w.bytes);
-  if (std::getenv("HBGS_COMPACT_SIZES")) std::fprintf(stderr, "%s end at %zu\n", "before image", w.bytes.size());  // TEMP
   for (int id = 0; id < kMlpCount; ++id) {
     if (id == kMlpImage && !paper(c)) continue;
     const QuantMlp& q = m.mlps[id];
@@ -609,7 +603,6 @@ std::vector<uint8_t> serialize_compact(const CompactModel& m) {
     write_floats(&w, q.ranges.hidden_max);
     write_floats(&w, q.ranges.out_absmax);
   }
-  if (std::getenv("HBGS_COMPACT_SIZES")) std::fprintf(stderr, "%s end at %zu\n", "before mlps", w.bytes.size());  // TEMP
   w.u64(detail::fnv1a64(w.bytes.data(), w.bytes.size()));
   return std::move(w.bytes);
 }

@@ -2,7 +2,6 @@
 // The compact job (gs/jobs/compact.h).
 #include "gs/jobs/compact.h"
 
-#include <cstdlib>
 #include <vector>
 
 #include "gs/platform/clock.h"
@@ -40,22 +39,6 @@ Status compact_run(const CompactRunOptions& a, CompactRunSummary* summary) {
     // The compact model as every loader sees it: read back from the file just written.
     Expected<model::HybridModel> back = model::load_model(a.out);
     if (!back.ok()) return back.status();
-    if (const char* ab = std::getenv("HBGS_COMPACT_ABLATE")) {  // TEMP experiment
-      const std::string w = ab;
-      const model::HybridModel& fm = loaded->model;
-      model::HybridModel& b = *back;
-      auto put = [&](const std::vector<float>& src, std::vector<float>* dst, size_t per) {
-        for (size_t r = 0; r < s.stats.source_rows.size(); ++r)
-          std::copy_n(src.begin() + long(s.stats.source_rows[r] * per), per, dst->begin() + long(r * per));
-      };
-      if (w.find("pos") != std::string::npos) put(fm.positions, &b.positions, 3);
-      if (w.find("off") != std::string::npos) put(fm.offsets, &b.offsets, 3 * size_t(fm.config.k));
-      if (w.find("scale") != std::string::npos) put(fm.log_scales, &b.log_scales, 6);
-      if (w.find("feat") != std::string::npos) put(fm.features, &b.features, size_t(fm.config.feature_dim));
-      if (w.find("img") != std::string::npos) put(fm.image_raw, &b.image_raw, 13);
-      for (int i = 0; i < 4; ++i)
-        if (w.find("mlp" + std::to_string(i)) != std::string::npos) b.mlps[i] = fm.mlps[i];
-    }
     model::EvalOptions eo;
     eo.psnr_only = true;
     Expected<model::EvalResult> fe = model::evaluate_views(loaded->model, test, eo, &pool);
