@@ -110,6 +110,7 @@ class FloatBackend {
 #ifdef NDEBUG
     ro.validate_inputs = false;  // decoded values are finite by construction; debug builds check
 #endif
+    ro.fixed_point = fixed_point_raster;
     Status st = renderer_->forward(cam, gp, ro, rgb);
     // The tile-intersection count depends on the Gaussians' screen sizes, which training changes;
     // when a view needs more than planned, re-plan once with 1.5x headroom (a rare allocation, not
@@ -126,6 +127,9 @@ class FloatBackend {
     return st;
   }
   int replans() const { return replans_; }
+  // render_fwd blends with the fixed-point tile kernel (RenderOptions::fixed_point): the on-device
+  // render path; training never sets it.
+  bool fixed_point_raster = false;
 
   Status render_bwd(const float* v_rgb, float* v_means, float* v_log_scales, float* v_quats, float* v_opacities,
                     float* v_colors, float* v_means2d, double* v_pose) {

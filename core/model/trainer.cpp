@@ -685,10 +685,17 @@ struct ModelRenderer::Impl {
   detail::FloatBackend backend;
   StepWorkspace<float> ws;
   size_t capacity = 0;
+  ModelRenderOptions options;
+  double decode_ms = 0, forward_ms = 0;
 };
 
 ModelRenderer::ModelRenderer() : impl_(new Impl) {}
 ModelRenderer::~ModelRenderer() = default;
+
+void ModelRenderer::set_options(const ModelRenderOptions& options) {
+  impl_->options = options;
+  impl_->backend.fixed_point_raster = options.fixed_point_raster;
+}
 
 Status ModelRenderer::init(const HybridModel& model, int max_width, int max_height, platform::ThreadPool* pool,
                            const simd::KernelTable* kernels) {
@@ -699,6 +706,7 @@ Status ModelRenderer::init(const HybridModel& model, int max_width, int max_heig
                                                             kt, &impl_->renderer, &impl_->backend, &impl_->ws);
   if (!rc.ok()) return rc.status();
   impl_->capacity = cap;
+  impl_->backend.fixed_point_raster = impl_->options.fixed_point_raster;
   return Status::Ok();
 }
 
@@ -708,9 +716,17 @@ Status ModelRenderer::render(const HybridModel& model, const Camera& camera, flo
   GS_RETURN_IF_ERROR(validate_camera(camera));
   ModelParamsT<float> p = detail::model_params(model);
   size_t V = 0;
+  const uint64_t t0 = platform::now_ns();
   const size_t N = decode_view(d.backend, p, camera, d.ws, &V);
+  const uint64_t t1 = platform::now_ns();
   if (gaussians) *gaussians = N;
-  return d.backend.render_fwd(camera, d.ws.ng, rgb);
+  const Status st = d.backend.render_fwd(camera, d.ws.ng, rgb);
+  d.decode_ms = double(t1 - t0) * 1e-6;
+  d.forward_ms = double(platform::now_ns() - t1) * 1e-6;
+  return st;
 }
+
+double ModelRenderer::last_decode_ms() const { return impl_->decode_ms; }
+double ModelRenderer::last_forward_ms() const { return impl_->forward_ms; }
 
 }  // namespace gs::model

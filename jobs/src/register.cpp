@@ -128,6 +128,7 @@ Expected<pose::RegisterOptions> register_options(const RegisterRunOptions& a) {
   if (!(a.time_budget_ms >= 0)) return invalid_argument("--time-budget-ms must be 0 or positive");
   o.finest_downscale = a.downscale;
   o.time_budget_ms = a.time_budget_ms;
+  o.fixed_point = a.fixed_point;
   return o;
 }
 

@@ -184,6 +184,7 @@ struct Registrar::Impl {
     RenderOptions ro;
     ro.validate_inputs = false;
     ro.depth = true;
+    ro.fixed_point = opt.fixed_point;  // keyframes only: the LM polish needs a float forward
     GS_RETURN_IF_ERROR(renderer.forward(cam, gp, ro, key_rgb.data(), key_depth.data()));
     const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
     const float* T = renderer.final_transmittance();

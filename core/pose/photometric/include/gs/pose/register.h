@@ -54,6 +54,9 @@ struct RegisterOptions {
   int max_iterations_per_level = 20;  // LM; Adam uses adam_iterations_per_level
   int adam_iterations_per_level = 100;
   double time_budget_ms = 0;     // > 0: stop (keeping the best pose) when exceeded
+  // On-device mode: the keyframe renders (colour, depth, alpha) use the fixed-point blending
+  // (RenderOptions::fixed_point); the renderer-Jacobian polish stays float (it needs a backward).
+  bool fixed_point = false;
   float huber_delta = 0.1f;      // per-pixel residual norm beyond which the weight falls as 1/|r|
   // Stopping: a level ends when an accepted step moves less than these (rad; x scene extent) or the
   // cost falls by a relative amount below min_relative_decrease.
