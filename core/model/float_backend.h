@@ -184,7 +184,8 @@ class FloatBackend {
 inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, size_t rows, int max_width, int max_height,
                                                     int ws_width, int ws_height, platform::ThreadPool* pool,
                                                     const simd::KernelTable* kernels, Renderer* renderer,
-                                                    FloatBackend* backend, StepWorkspace<float>* ws) {
+                                                    FloatBackend* backend, StepWorkspace<float>* ws,
+                                                    bool training = true) {
   const size_t K = size_t(model.config.k);
   RenderCapacity rc;
   rc.max_gaussians = rows * K;
@@ -197,7 +198,7 @@ inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, si
   for (const Mlp& m : model.mlps) max_params = std::max(max_params, m.params.size());
   backend->init(renderer, kernels, pool, max_params, max_width);
   const ModelParamsT<float> p = model_params(model);
-  ws->reserve(rows, model.config.k, p.shapes, p.image_feature_dim, ws_width, ws_height);
+  ws->reserve(rows, model.config.k, p.shapes, p.image_feature_dim, ws_width, ws_height, training);
   return rc;
 }
 

@@ -703,7 +703,8 @@ Status ModelRenderer::init(const HybridModel& model, int max_width, int max_heig
   const simd::KernelTable* kt = kernels ? kernels : &simd::best_kernel_table();
   const size_t cap = std::max<size_t>(model.anchor_count, 1);
   Expected<RenderCapacity> rc = detail::plan_model_pipeline(model, cap, max_width, max_height, max_width, max_height, pool,
-                                                            kt, &impl_->renderer, &impl_->backend, &impl_->ws);
+                                                            kt, &impl_->renderer, &impl_->backend, &impl_->ws,
+                                                            /*training=*/false);
   if (!rc.ok()) return rc.status();
   impl_->capacity = cap;
   impl_->backend.fixed_point_raster = impl_->options.fixed_point_raster;

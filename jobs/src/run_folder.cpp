@@ -118,6 +118,8 @@ Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& r
   if (!platform::is_directory(root)) return invalid_argument("dataset folder " + root + " not found");
   io::DatasetOptions opt;
   opt.max_width = max_width;
+  if (split == "test") opt.images = io::DatasetOptions::Images::kTest;
+  if (split == "train") opt.images = io::DatasetOptions::Images::kTrain;
   Expected<io::Dataset> ds = io::load_dataset(root, opt);
   if (!ds.ok()) return ds.status();
   auto out = std::make_unique<LoadedDataset>();

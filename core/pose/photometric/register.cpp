@@ -408,7 +408,7 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const model::HybridModel&
   const size_t cap = std::max(model.anchor_count, plan_anchor_rows);
   d.planned_rows = cap;
   Expected<RenderCapacity> rc = model::detail::plan_model_pipeline(model, cap, max_width, max_height, 1, 1, pool, d.kernels,
-                                                            &d.renderer, &d.backend, &d.ws);
+                                                            &d.renderer, &d.backend, &d.ws, /*training=*/false);
   if (!rc.ok()) return rc.status();
   d.allocate_images();
   d.bytes = Renderer::plan_bytes(*rc) + d.image_bytes() +
