@@ -3,8 +3,9 @@
 // features, k offsets and 6 log-scales, optionally fused with image-based features, and the tiny
 // MLPs that decode neural Gaussians per view. Also its versioned binary file format.
 //
-// Memory: every per-anchor array is allocated once with capacity() rows (the hard anchor budget),
-// so growing anchors during training never reallocates; rows [0, anchor_count) are live.
+// Memory: every per-anchor array has capacity() rows, rows [0, anchor_count) live. capacity()
+// follows the scene: create_model allocates twice the initial anchors, the trainer grows the rows
+// (by half again, at densification steps only) up to the hard budget config.anchor_capacity().
 #pragma once
 
 #include <cstddef>
