@@ -59,7 +59,7 @@ void qraster_fwd_tile_ref(const QRasterParams* p, int32_t tile_x, int32_t tile_y
         const QSplat& s = splats[i];
         int32_t bx0, by0, bx1, by1;
         if (!q_support_box(s, x0, y0, tw, th, &bx0, &by0, &bx1, &by1)) continue;
-        if (lx < bx0 || lx > bx1 || ly < by0 || ly > by1) continue;
+        if (ly < by0 || ly > by1) continue;  // rows of the support box; columns decide by y alone
         QRow row;
         if (!q_splat_row(s, x0, py_q8, &row)) continue;
         int16_t v = q_subs(row.v_j, q_column_step(s, lx - row.j));

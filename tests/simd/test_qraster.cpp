@@ -94,6 +94,11 @@ void check_tile(const gs::simd::KernelTable* kt, int width, int height, int tx, 
   for (int y = 0; y < height; ++y)
     for (int x = 0; x < width; ++x)
       if (x / 16 != tx || y / 16 != ty) REQUIRE(out.T[size_t(y) * width + x] == kCanary);
+  // Without a depth output (the image-only blend): the same image.
+  Outputs nod(P);
+  kt->qraster_fwd_tile(&p, tx, ty, q.data(), count, nod.rgb.data(), nod.T.data(), nod.last.data(), nullptr);
+  REQUIRE(std::memcmp(nod.rgb.data(), ref.rgb.data(), nod.rgb.size() * sizeof(float)) == 0);
+  REQUIRE(nod.last == ref.last);
 }
 
 }  // namespace

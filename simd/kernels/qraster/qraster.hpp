@@ -5,7 +5,8 @@
 // formats in gs/simd/qsplat.h). Structure as the float forward (raster.hpp): splats in chunks,
 // bucketed by the rows of their support box; per row, each splat's row values (its nearest column
 // and v there, w^2) are computed once in scalar code, then every lane of the row is v_j minus a
-// per-splat column-step table, squared, compared and blended.
+// per-splat column-step table, squared, compared and blended. A lane takes part where its y <= ylim
+// (the support box only picks the tile's rows), so the lane width never changes a result.
 //
 // Included only by the per-ISA translation units in ../variants/.
 #pragma once
@@ -85,13 +86,20 @@ struct QRasterKernels {
 
   struct ChunkSplat {
     const QSplat* s;
-    int16_t bx0, bx1;
     int16_t index1;     // chunk-relative index + 1
     alignas(32) int16_t step[32];  // step[d + 15]: v step over d columns, d in [-15, 15]
   };
 
   static void fwd(const QRasterParams* p, int32_t tile_x, int32_t tile_y, const QSplat* splats, int32_t count,
                   float* out_rgb, float* out_T, int32_t* out_last, float* out_depth) {
+    if (out_depth) blend<true>(p, tile_x, tile_y, splats, count, out_rgb, out_T, out_last, out_depth);
+    else blend<false>(p, tile_x, tile_y, splats, count, out_rgb, out_T, out_last, out_depth);
+  }
+
+  // kDepth: accumulate depth too (registration's keyframes); the image-only forward skips it.
+  template <bool kDepth>
+  static void blend(const QRasterParams* p, int32_t tile_x, int32_t tile_y, const QSplat* splats, int32_t count,
+                    float* out_rgb, float* out_T, int32_t* out_last, float* out_depth) {
     const int32_t x0 = tile_x * kTileSize, y0 = tile_y * kTileSize;
     const int32_t tw = scalar::min(kTileSize, p->width - x0), th = scalar::min(kTileSize, p->height - y0);
     alignas(64) int16_t T[kPixels], acc[4][kPixels], done[kPixels];
@@ -102,8 +110,6 @@ struct QRasterKernels {
       last[i] = 0;
       done[i] = (i % kTileSize < tw && i / kTileSize < th) ? 0 : -1;
     }
-    alignas(64) int16_t lane_col[kTileSize];
-    for (int i = 0; i < kTileSize; ++i) lane_col[i] = int16_t(i);
     ChunkSplat chunk[kChunk];
     uint8_t rows[kTileSize][kChunk];
     int32_t row_count[kTileSize];
@@ -120,10 +126,10 @@ struct QRasterKernels {
         if (!q_support_box(s, x0, y0, tw, th, &bx0, &by0, &bx1, &by1)) continue;
         ChunkSplat& c = chunk[nb];
         c.s = &s;
-        c.bx0 = int16_t(bx0);
-        c.bx1 = int16_t(bx1);
         c.index1 = int16_t(k + 1);
-        for (int d = -15; d <= 15; ++d) c.step[d + 15] = q_column_step(s, d);
+        // q_column_step(s, d) for d = -15..15, by exact int64 increments instead of products.
+        int64_t acc = -15 * int64_t(s.s) + 1024;
+        for (int d = 0; d < 31; ++d, acc += s.s) c.step[d] = q_sat16(acc >> 11);
         c.step[31] = 0;
         for (int32_t y = by0; y <= by1; ++y) rows[y][row_count[y]++] = uint8_t(nb);
         ++nb;
@@ -141,17 +147,15 @@ struct QRasterKernels {
           if (xsimd::all(is_done)) continue;
           B t = B::load_aligned(T + o), cr = B::load_aligned(acc[0] + o), cg = B::load_aligned(acc[1] + o);
           B cb = B::load_aligned(acc[2] + o), cd = B::load_aligned(acc[3] + o), cl(int16_t(0));
-          const B cols = B::load_aligned(lane_col + lx0);
           for (int32_t j = 0; j < rn; ++j) {
             if (!row_ok[j]) continue;
             const ChunkSplat& c = chunk[row[j]];
-            if (lx0 + L - 1 < c.bx0 || lx0 > c.bx1) continue;
             const QSplat& s = *c.s;
             const QRow& rv = row_vals[j];
             const B step = B::load_unaligned(c.step + (lx0 - rv.j + 15));
             const B v = xsimd::max(xsimd::ssub(B(rv.v_j), step), B(int16_t(-32767)));
             const B y = xsimd::sadd(q_mulhrs(v, v), B(rv.y_w));
-            const M in = (y <= B(int16_t(s.ylim))) & (cols >= B(c.bx0)) & (cols <= B(c.bx1)) & !is_done;
+            const M in = (y <= B(int16_t(s.ylim))) & !is_done;
             if (!xsimd::any(in)) continue;
             const B alpha = q_alpha(y, int16_t(s.opacity));
             const B next = t - q_mulhrs(t, alpha);
@@ -161,7 +165,7 @@ struct QRasterKernels {
             cr = xsimd::sadd(cr, q_mulhrs(w, B(int16_t(s.rgb[0]))));
             cg = xsimd::sadd(cg, q_mulhrs(w, B(int16_t(s.rgb[1]))));
             cb = xsimd::sadd(cb, q_mulhrs(w, B(int16_t(s.rgb[2]))));
-            cd = xsimd::sadd(cd, q_mulhrs(w, B(int16_t(s.depth))));
+            if (kDepth) cd = xsimd::sadd(cd, q_mulhrs(w, B(int16_t(s.depth))));
             t = xsimd::select(use, next, t);
             cl = xsimd::select(use, B(c.index1), cl);
             if (xsimd::any(stop)) {

@@ -11,6 +11,8 @@
 // 0), never to a wrong value. y = v^2 + w^2 is compared with ln(255 o) (alpha >= 1/255, the float
 // kernels' rule) and alpha = o exp(-y) = o h(y / 8)^8 with h a degree-4 polynomial of exp(-z) on
 // [0, 0.72] (|error| < 8e-5), evaluated in Q15; alpha's error is below 4e-4 (0.1 of an 8-bit level).
+// The support box (from the float record's extents) picks the tile and its rows; within a row a
+// pixel takes part exactly where y <= ylim.
 //
 // Fixed-point formats: positions Q8 px (int32); v, w Q13 (int16, |v| < 4); y Q11 (int16, < 16);
 // alpha, transmittance, colour and depth Q15 (int16, 1.0 = 32767). mulhrs(a, b) = (a b + 2^14) >> 15
