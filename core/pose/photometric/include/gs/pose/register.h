@@ -67,7 +67,7 @@ struct RegisterOptions {
   // an image of something else, or with no contrast at all, explains nothing), the model covers
   // at least min_coverage of the image (mean opacity of the render), and the pose moved at most
   // max_rotation_deg / max_translation (x scene extent) from the start.
-  double max_rmse = 0.09, min_explained = 0.5, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
+  double max_rmse = 0.2, min_explained = 0.55, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
 };
 
 enum class RegisterVerdict {
