@@ -12,7 +12,11 @@
 #include <cstdint>
 #include <limits>
 
-namespace gs::simd::fxp {
+#include "gs/simd/isa.h"
+
+namespace gs::simd {
+inline namespace GS_SIMD_ISA_NS {  // inline code: per-ISA copies (gs/simd/isa.h)
+namespace fxp {
 
 // real in (0, 2^31): *multiplier in [2^30, 2^31) (Q31 of the mantissa) and *shift with
 // real = multiplier / 2^31 * 2^shift. real <= 0 or not finite: multiplier 0, shift 0.
@@ -69,4 +73,6 @@ inline int8_t saturate_int8(int32_t v) { return int8_t(v < -128 ? -128 : (v > 12
 inline int16_t saturate_int16(int32_t v) { return int16_t(v < -32768 ? -32768 : (v > 32767 ? 32767 : v)); }
 inline uint8_t saturate_uint8(int32_t v) { return uint8_t(v < 0 ? 0 : (v > 255 ? 255 : v)); }
 
-}  // namespace gs::simd::fxp
+}  // namespace fxp
+}  // inline namespace GS_SIMD_ISA_NS
+}  // namespace gs::simd
