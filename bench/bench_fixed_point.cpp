@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
 // bench_fixed_point: the on-device render path against the float one on a trained model's views.
-// For each kernel table and thread count, every test view is rendered with the float and with the
-// fixed-point blending (RenderOptions::fixed_point), and the Gaussian renderer's forward (project,
-// bin, sort, blend) is timed apart from the anchor decoding both share. Prints median ms per view,
+// For each kernel table and thread count, every test view is rendered with the float path and with
+// the on-device one (fixed-point blending, RenderOptions::fixed_point; and for a compact model the
+// int8 decoder), and the Gaussian renderer's forward (project, bin, sort, blend) is timed apart from
+// the anchor decoding. Prints median ms per view,
 // the int/float speed ratio, and the PSNR of each path against the dataset images (8-bit) and of
 // the fixed-point renders against the float ones.
 #include <algorithm>
@@ -79,9 +80,10 @@ int main(int argc, char** argv) {
   }
   std::printf("bench_fixed_point: %s, %zu %s views of %s, up to %dx%d, %zu anchors, %d reps\n", mv->source.model_path.c_str(),
               views.size(), split.c_str(), mv->source.dataset.c_str(), max_w, max_h, mv->model.anchor_count, reps);
-  std::printf("  forward = Gaussian renderer (project, bin, sort, blend); decode = anchor MLPs (the same in both paths)\n");
-  std::printf("  %-7s %3s  %10s %10s %7s  %10s  %9s %9s %11s\n", "isa", "thr", "float fwd", "int fwd", "ratio", "decode",
-              "PSNR flt", "PSNR int", "int vs flt");
+  std::printf("  forward = Gaussian renderer (project, bin, sort, blend); decode = anchor MLPs\n");
+  std::printf("  decode: float MLPs, and for a compact model the int8 decoder (qmlp_fwd) on the fixed-point side\n");
+  std::printf("  %-7s %3s  %10s %10s %7s  %10s %10s  %9s %9s %11s\n", "isa", "thr", "float fwd", "int fwd", "ratio",
+              "dec float", "dec int", "PSNR flt", "PSNR int", "int vs flt");
   for (const gs::simd::KernelTable* kt : tables) {
     for (const std::string& tl : gs::bench::split_list(threads_list)) {
       gs::platform::ThreadPool pool(std::stoi(tl));
@@ -90,7 +92,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "bench_fixed_point: %s\n", st.to_string().c_str());
         return 1;
       }
-      std::vector<double> fwd[2], dec;
+      std::vector<double> fwd[2], dec[2];
       double psnr[2] = {0, 0}, agree = 0;
       std::vector<float> rgb(size_t(max_w) * size_t(max_h) * 3);
       for (int rep = -1; rep < reps; ++rep) {  // rep -1: warm-up and image metrics
@@ -100,14 +102,18 @@ int main(int argc, char** argv) {
           for (int fixed = 0; fixed < 2; ++fixed) {
             gs::model::ModelRenderOptions ro;
             ro.fixed_point_raster = fixed == 1;
-            renderer.set_options(ro);
+            ro.int8_mlp = fixed == 1 ? mv->compact.get() : nullptr;  // the int8 decoder too, for a compact model
+            if (gs::Status st = renderer.set_options(ro); !st.ok()) {
+              std::fprintf(stderr, "bench_fixed_point: %s\n", st.to_string().c_str());
+              return 1;
+            }
             if (gs::Status st = renderer.render(mv->model, v->camera, rgb.data()); !st.ok()) {
               std::fprintf(stderr, "bench_fixed_point: %s: %s\n", v->name.c_str(), st.to_string().c_str());
               return 1;
             }
             if (rep >= 0) {
               fwd[fixed].push_back(renderer.last_forward_ms());
-              if (fixed == 0) dec.push_back(renderer.last_decode_ms());
+              dec[fixed].push_back(renderer.last_decode_ms());
             } else {
               out[fixed] = to_u8(rgb, n);
               psnr[fixed] += psnr_u8(out[fixed].data(), v->image.pixels.data(), n) / double(views.size());
@@ -117,8 +123,8 @@ int main(int argc, char** argv) {
         }
       }
       const double f = median(fwd[0]), q = median(fwd[1]);
-      std::printf("  %-7s %3d  %8.2f ms %8.2f ms %6.2fx  %7.2f ms  %9.3f %9.3f %8.1f dB\n", kt->isa, pool.num_threads(), f, q,
-                  q > 0 ? f / q : 0.0, median(dec), psnr[0], psnr[1], agree);
+      std::printf("  %-7s %3d  %8.2f ms %8.2f ms %6.2fx  %7.2f ms %7.2f ms  %9.3f %9.3f %8.1f dB\n", kt->isa,
+                  pool.num_threads(), f, q, q > 0 ? f / q : 0.0, median(dec[0]), median(dec[1]), psnr[0], psnr[1], agree);
       std::fflush(stdout);
     }
   }

@@ -5,11 +5,13 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <vector>
 
 #include "gs/model/decode.h"
 #include "gs/model/hybrid_model.h"
+#include "gs/model/quant_decoder.h"
 #include "gs/model/step_graph.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/render.h"
@@ -67,6 +69,8 @@ class FloatBackend {
   }
 
   void mlp_fwd(const simd::MlpShape& s, int32_t batch, const float* x, const float* p, float* hidden, float* y) {
+    for (int id = 0; id < kMlpCount; ++id)
+      if (int8_ && int8_->mlps[id].present && p == int8_keys_[id]) return mlp_fwd_int8(int8_->mlps[id], batch, x, y);
     const int chunks = chunk_count(batch);
     auto body = [&](size_t b, size_t e, int) {
       for (size_t c = b; c < e; ++c) {
@@ -127,6 +131,22 @@ class FloatBackend {
     return st;
   }
   int replans() const { return replans_; }
+
+  // The on-device decode: MLPs whose float parameters are keys[id] run as int8 (qmlp_fwd) with the
+  // scratch planned for `rows` rows; null turns it off. The outputs are the float path's (final
+  // activation applied), so decoding continues unchanged.
+  void set_int8_decoder(const QuantDecoder* qd, const float* const keys[kMlpCount], size_t rows) {
+    int8_ = qd;
+    for (int id = 0; id < kMlpCount; ++id) int8_keys_[id] = keys ? keys[id] : nullptr;
+    if (qd) {
+      q_x_.assign(rows * size_t(qd->max_in), 0);
+      q_h_.assign(rows * size_t(qd->max_hidden), 0);
+      q_y_.assign(rows * size_t(qd->max_out), 0);
+    }
+  }
+  void set_int8_keys(const float* const keys[kMlpCount]) {
+    for (int id = 0; id < kMlpCount; ++id) int8_keys_[id] = keys[id];
+  }
   // render_fwd blends with the fixed-point tile kernel (RenderOptions::fixed_point): the on-device
   // render path; training never sets it.
   bool fixed_point_raster = false;
@@ -167,6 +187,30 @@ class FloatBackend {
       body(0, n, 0);
   }
 
+  void mlp_fwd_int8(const QuantMlpKernel& k, int32_t batch, const float* x, float* y) {
+    const int chunks = chunk_count(batch);
+    const simd::QMlpParams qp = k.params();
+    const size_t I = size_t(k.in), H = size_t(k.hidden), O = size_t(k.out);
+    auto body = [&](size_t b, size_t e, int) {
+      for (size_t c = b; c < e; ++c) {
+        int32_t r0, r1;
+        chunk_rows(batch, chunks, int(c), &r0, &r1);
+        if (r1 <= r0) continue;
+        int16_t* xq = q_x_.data() + size_t(r0) * I;
+        const float* xr = x + size_t(r0) * I;
+        for (size_t i = 0; i < size_t(r1 - r0) * I; ++i) {
+          const float v = std::nearbyint(xr[i] * k.in_inv_scale);
+          xq[i] = int16_t(v > 32767.0f ? 32767 : (v < -32767.0f ? -32767 : int(v)));
+        }
+        int16_t* yq = q_y_.data() + size_t(r0) * O;
+        kt_->qmlp_fwd(&qp, r1 - r0, xq, q_h_.data() + size_t(r0) * H, yq);
+        float* yr = y + size_t(r0) * O;
+        for (size_t i = 0; i < size_t(r1 - r0) * O; ++i) yr[i] = simd::mlp_act2<float>(k.act2, float(yq[i]) * k.out_scale);
+      }
+    };
+    run(size_t(chunks), body);
+  }
+
   Renderer* renderer_ = nullptr;
   const simd::KernelTable* kt_ = nullptr;
   platform::ThreadPool* pool_ = nullptr;
@@ -175,6 +219,9 @@ class FloatBackend {
   std::vector<float> chunk_grads_;
   size_t max_mlp_params_ = 0;
   int replans_ = 0;
+  const QuantDecoder* int8_ = nullptr;
+  const float* int8_keys_[kMlpCount] = {};
+  std::vector<int16_t> q_x_, q_h_, q_y_;
 };
 
 // Plans what rendering a model takes, for `rows` anchor rows and images up to max_width x

@@ -260,7 +260,8 @@ Status save_model(const HybridModel& model, const std::string& path) {
   return platform::write_file_atomic(path, bytes.data(), bytes.size());
 }
 
-Expected<HybridModel> load_model(const std::string& path) {
+Expected<HybridModel> load_model(const std::string& path, std::unique_ptr<CompactModel>* compact_out) {
+  if (compact_out) compact_out->reset();
   Expected<std::vector<uint8_t>> bytes = platform::read_file(path);
   if (!bytes.ok()) return bytes.status();
   if (is_compact_file(bytes->data(), bytes->size())) {
@@ -268,6 +269,7 @@ Expected<HybridModel> load_model(const std::string& path) {
     if (!compact.ok()) return compact.status();
     HybridModel m = dequantize(*compact);
     if (Status st = check_model_finite(m, path); !st.ok()) return parse_error(st.message());
+    if (compact_out) *compact_out = std::make_unique<CompactModel>(std::move(compact).value());
     return m;
   }
   return deserialize_model(bytes->data(), bytes->size(), path);

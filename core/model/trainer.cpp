@@ -13,6 +13,7 @@
 #include "byte_codec.h"
 #include "float_backend.h"
 #include "gs/model/image_features.h"
+#include "gs/model/quant_decoder.h"
 #include "gs/optim/adam.h"
 #include "gs/optim/schedule.h"
 #include "gs/platform/clock.h"
@@ -736,14 +737,34 @@ struct ModelRenderer::Impl {
   size_t capacity = 0;
   ModelRenderOptions options;
   double decode_ms = 0, forward_ms = 0;
+  QuantDecoder int8;
+  const CompactModel* int8_source = nullptr;  // what int8 was prepared from
+
+  // Prepares (once per compact model) and attaches the int8 decoder, or detaches it.
+  Status plan_int8() {
+    if (!options.int8_mlp) {
+      backend.set_int8_decoder(nullptr, nullptr, 0);
+      return Status::Ok();
+    }
+    if (int8_source != options.int8_mlp) {
+      Expected<QuantDecoder> q = prepare_quant_decoder(*options.int8_mlp);
+      if (!q.ok()) return q.status();
+      int8 = std::move(q).value();
+      int8_source = options.int8_mlp;
+    }
+    if (capacity > 0) backend.set_int8_decoder(&int8, nullptr, capacity);
+    return Status::Ok();
+  }
 };
 
 ModelRenderer::ModelRenderer() : impl_(new Impl) {}
 ModelRenderer::~ModelRenderer() = default;
 
-void ModelRenderer::set_options(const ModelRenderOptions& options) {
-  impl_->options = options;
-  impl_->backend.fixed_point_raster = options.fixed_point_raster;
+Status ModelRenderer::set_options(const ModelRenderOptions& options) {
+  Impl& d = *impl_;
+  d.options = options;
+  d.backend.fixed_point_raster = options.fixed_point_raster;
+  return d.plan_int8();
 }
 
 Status ModelRenderer::init(const HybridModel& model, int max_width, int max_height, platform::ThreadPool* pool,
@@ -757,7 +778,7 @@ Status ModelRenderer::init(const HybridModel& model, int max_width, int max_heig
   if (!rc.ok()) return rc.status();
   impl_->capacity = cap;
   impl_->backend.fixed_point_raster = impl_->options.fixed_point_raster;
-  return Status::Ok();
+  return impl_->plan_int8();
 }
 
 Status ModelRenderer::render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians) {
@@ -765,6 +786,11 @@ Status ModelRenderer::render(const HybridModel& model, const Camera& camera, flo
   if (model.anchor_count > d.capacity) return capacity_exceeded("model renderer: the model has more anchors than planned");
   GS_RETURN_IF_ERROR(validate_camera(camera));
   ModelParamsT<float> p = detail::model_params(model);
+  if (d.options.int8_mlp) {
+    const float* keys[kMlpCount];
+    for (int id = 0; id < kMlpCount; ++id) keys[id] = model.mlps[id].params.empty() ? nullptr : model.mlps[id].params.data();
+    d.backend.set_int8_keys(keys);
+  }
   size_t V = 0;
   const uint64_t t0 = platform::now_ns();
   const size_t N = decode_view(d.backend, p, camera, d.ws, &V);

@@ -38,6 +38,7 @@ Status evaluate_run(const EvaluateRunOptions& a, EvaluateRunSummary* summary) {
   model::EvalOptions eo;
   eo.lpips = lpips->get();
   eo.render.fixed_point_raster = a.fixed_point;
+  if (a.fixed_point) eo.render.int8_mlp = loaded->compact.get();  // int8 MLPs when the file is compact
   if (a.renders) eo.render_dir = s.render_dir = (fs::path(s.out_dir) / a.split / a.method / "renders").string();
   const double t0 = platform::now_seconds();
   Expected<model::EvalResult> r = model::evaluate_views(*model, (*data)->views, eo, &pool);

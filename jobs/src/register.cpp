@@ -295,6 +295,7 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   for (size_t k = 0; k < index.size(); ++k) split_views.push_back(&ds.views[index[k]]);
   model::EvalOptions eo;
   eo.render.fixed_point_raster = a.fixed_point;
+  if (a.fixed_point) eo.render.int8_mlp = loaded->compact.get();  // int8 MLPs when the file is compact
   Expected<model::EvalResult> m_start = model::evaluate_views(*model, split_views, eo, &pool);
   if (!m_start.ok()) return m_start.status();
   for (size_t k = 0; k < index.size(); ++k) ds.views[index[k]].camera.pose = estimated[k];

@@ -136,7 +136,7 @@ Expected<ModelViews> load_model_views(const std::string& input, const std::strin
   Expected<ModelSource> src = resolve_model_source(input, dataset_override, max_width_override);
   if (!src.ok()) return src.status();
   out.source = std::move(src).value();
-  Expected<model::HybridModel> model = model::load_model(out.source.model_path);
+  Expected<model::HybridModel> model = model::load_model(out.source.model_path, &out.compact);
   if (!model.ok()) return model.status();
   out.model = std::move(model).value();
   Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(out.source.dataset, out.source.max_width, split);

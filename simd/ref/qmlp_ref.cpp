@@ -4,12 +4,12 @@
 
 namespace gs::simd {
 
-void qmlp_fwd_ref(const QMlpParams* p, int32_t batch, const int8_t* x, int8_t* hidden, int16_t* y) {
+void qmlp_fwd_ref(const QMlpParams* p, int32_t batch, const int16_t* x, int16_t* hidden, int16_t* y) {
   int32_t acc[kQMlpMaxWidth];
   const int32_t I = p->in, H = p->hidden, O = p->out;
   for (int32_t b = 0; b < batch; ++b) {
-    const int8_t* xr = x + size_t(b) * size_t(I);
-    int8_t* hr = hidden + size_t(b) * size_t(H);
+    const int16_t* xr = x + size_t(b) * size_t(I);
+    int16_t* hr = hidden + size_t(b) * size_t(H);
     for (int32_t h = 0; h < H; ++h) {
       int32_t a = p->b1[h];
       for (int32_t i = 0; i < I; ++i) a += int32_t(xr[i]) * p->w1t[size_t(i) * size_t(p->hidden_pad) + size_t(h)];

@@ -16,6 +16,9 @@
 #include "gs/hash.h"
 #include "gs/model/compact_model.h"
 #include "gs/model/hybrid_model.h"
+#include "gs/model/quant_decoder.h"
+#include "gs/model/trainer.h"
+#include "support/alloc_counter.h"
 #include "support/model_fixtures.h"
 #include "support/temp_dir.h"
 
@@ -301,6 +304,42 @@ TEST_CASE("compact: corrupt, truncated, foreign and future files are refused wit
   REQUIRE_FALSE(r.ok());
   CHECK(r.status().message().find("not an hbgs compact model file") != std::string::npos);
   CHECK_FALSE(deserialize_model(good.data(), good.size(), "c.hbgc").ok());
+}
+
+TEST_CASE("compact: the int8 decoder renders like the float decoder of the same model, allocation-free") {
+  const HybridModel m = random_model(ImageFeatureMode::kPaper, 41);
+  const std::vector<Camera> cams = ring_cameras(8);
+  Expected<CompactModel> cm = compact_from_model(m, cams, CompactOptions{}, nullptr);
+  REQUIRE(cm.ok());
+  const HybridModel d = dequantize(*cm);
+  ModelRenderer flt, q8;
+  REQUIRE(flt.init(d, 64, 48, nullptr).ok());
+  ModelRenderOptions ro;
+  ro.int8_mlp = &*cm;
+  REQUIRE(q8.set_options(ro).ok());
+  REQUIRE(q8.init(d, 64, 48, nullptr).ok());
+  std::vector<float> a(64 * 48 * 3), b(a.size());
+  double worst = 0;
+  for (const Camera& c : cams) {
+    REQUIRE(flt.render(d, c, a.data()).ok());
+    REQUIRE(q8.render(d, c, b.data()).ok());
+    for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::fabs(double(a[i]) - double(b[i])));
+  }
+  MESSAGE("int8 vs float decoder: max colour difference " << worst * 255 << " 8-bit levels");
+  CHECK(worst * 255 < 2.0);
+  CHECK(worst > 0);  // the int8 path really ran
+  test::AllocationScope scope;
+  REQUIRE(q8.render(d, cams[0], b.data()).ok());
+  CHECK(scope.count() == 0);
+  // A compact model without calibrated ranges cannot drive the int8 decoder: refused, not guessed.
+  Expected<CompactModel> uncal = compact_from_model(m, {}, CompactOptions{}, nullptr);
+  REQUIRE(uncal.ok());
+  ModelRenderOptions bad;
+  bad.int8_mlp = &*uncal;
+  ModelRenderer r;
+  const Status st = r.set_options(bad);
+  CHECK_FALSE(st.ok());
+  CHECK(st.message().find("activation ranges") != std::string::npos);
 }
 
 }  // namespace

@@ -37,10 +37,10 @@ struct QMlpKernels {
     }
   }
 
-  static void fwd(const QMlpParams* p, int32_t batch, const int8_t* x, int8_t* hidden, int16_t* y) {
+  static void fwd(const QMlpParams* p, int32_t batch, const int16_t* x, int16_t* hidden, int16_t* y) {
     alignas(64) int32_t acc[kQMlpMaxWidth];
     for (int32_t b = 0; b < batch; ++b) {
-      int8_t* hr = hidden + size_t(b) * size_t(p->hidden);
+      int16_t* hr = hidden + size_t(b) * size_t(p->hidden);
       layer(x + size_t(b) * size_t(p->in), p->in, p->w1t, p->hidden_pad, p->b1, p->hidden_pad, acc);
       qmlp_requant_hidden(p, acc, hr);
       layer(hr, p->hidden, p->w2t, p->out_pad, p->b2, p->out_pad, acc);

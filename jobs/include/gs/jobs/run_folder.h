@@ -11,6 +11,7 @@
 
 #include "gs/io/colmap.h"
 #include "gs/metrics/lpips.h"
+#include "gs/model/compact_model.h"
 #include "gs/model/hybrid_model.h"
 #include "gs/status.h"
 
@@ -53,6 +54,7 @@ Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& r
 struct ModelViews {
   ModelSource source;
   model::HybridModel model;
+  std::unique_ptr<model::CompactModel> compact;  // set when the model file is a compact one
   std::unique_ptr<LoadedDataset> data;
 };
 Expected<ModelViews> load_model_views(const std::string& input, const std::string& dataset_override, int max_width_override,

@@ -44,7 +44,7 @@ using Nv12ToRgbFn = void (*)(int32_t width, int32_t height, const uint8_t* y, in
                              int32_t uv_stride, uint8_t* rgb, int32_t rgb_stride);
 using QRasterFwdTileFn = void (*)(const QRasterParams*, int32_t tile_x, int32_t tile_y, const QSplat* splats,
                                   int32_t count, float* out_rgb, float* out_T, int32_t* out_last, float* out_depth);
-using QMlpFwdFn = void (*)(const QMlpParams*, int32_t batch, const int8_t* x, int8_t* hidden, int16_t* y);
+using QMlpFwdFn = void (*)(const QMlpParams*, int32_t batch, const int16_t* x, int16_t* hidden, int16_t* y);
 
 struct KernelTable {
   const char* isa;  // "ref", "sse2", "avx2", "avx512", "neon64", "neon"

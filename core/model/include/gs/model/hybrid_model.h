@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -104,6 +105,9 @@ Status check_model_finite(const HybridModel& model, const std::string& source);
 Status save_model(const HybridModel& model, const std::string& path);
 // Reads a float model file or a compact one ("HBGSCMPT", gs/model/compact_model.h, dequantised),
 // told apart by the magic, not the extension.
-Expected<HybridModel> load_model(const std::string& path);
+// compact (optional): set to the compact model when the file is one (the int8 decoder needs its
+// weights and ranges), left empty otherwise.
+struct CompactModel;
+Expected<HybridModel> load_model(const std::string& path, std::unique_ptr<CompactModel>* compact = nullptr);
 
 }  // namespace gs::model

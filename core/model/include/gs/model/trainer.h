@@ -129,16 +129,23 @@ class Trainer {
 // Renders views of a trained model (no gradients): the step graph's forward in float. Allocates at
 // init() only.
 // How ModelRenderer renders: the float path (default), or the on-device fixed-point blending.
+struct CompactModel;
+
 struct ModelRenderOptions {
   bool fixed_point_raster = false;  // RenderOptions::fixed_point: the int16 tile kernel (gs/simd/qsplat.h)
+  // Non-null: the decoder MLPs run as int8 (qmlp_fwd, gs/model/quant_decoder.h) with this compact
+  // model's weights and calibrated ranges; the model rendered must be its dequantize(). Kept alive
+  // by the caller.
+  const CompactModel* int8_mlp = nullptr;
 };
 
 class ModelRenderer {
  public:
   ModelRenderer();
   ~ModelRenderer();
-  // Takes effect from the next render().
-  void set_options(const ModelRenderOptions& options);
+  // Takes effect from the next render(); preparing the int8 decoder can fail (a compact model
+  // without calibrated ranges).
+  Status set_options(const ModelRenderOptions& options);
   // Plans for the model's capacity and images up to max_width x max_height.
   Status init(const HybridModel& model, int max_width, int max_height, platform::ThreadPool* pool,
               const simd::KernelTable* kernels = nullptr);
