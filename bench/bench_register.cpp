@@ -80,6 +80,7 @@ struct Row {  // one view under one setting and start error
   bool success = false, converged = false;
   std::string verdict;
   int iterations = 0;
+  double initial_rmse = 0, final_rmse = 0, explained = 0, coverage = 0;
 };
 
 struct Aggregate {
@@ -114,6 +115,13 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--seed", seed, "pose-noise seed (and the training seed)")->capture_default_str();
   app.add_option("--threads", threads, "worker threads (0: all CPUs)")->capture_default_str();
+  int keyframes = 0, keyframe_iterations = 0, keyframe_downscale = 0, polish = -1;
+  double min_decrease = -1;
+  app.add_option("--keyframes", keyframes, "keyframe solver: keyframes (0: the budget's)");
+  app.add_option("--keyframe-iterations", keyframe_iterations, "keyframe solver: LM steps per level (0: the budget's)");
+  app.add_option("--keyframe-downscale", keyframe_downscale, "keyframe render divisor (0: finest/2)");
+  app.add_option("--polish", polish, "renderer LM polish steps at the finest level (-1: default)");
+  app.add_option("--min-decrease", min_decrease, "relative cost decrease that ends a level (-1: default)");
   app.add_option("--out", out_dir, "folder for the CSV files and SVG plots");
   app.add_option("--json", json_path, "write the summary as JSON to this file");
   CLI11_PARSE(app, argc, argv);
@@ -251,6 +259,11 @@ int run(int argc, char** argv) {
     o.adam_iterations_per_level = s.adam_iterations;
     o.keyframe_iterations = s.keyframe_iterations;
     o.keyframes = s.keyframes;
+    if (keyframes > 0) o.keyframes = keyframes;
+    if (keyframe_iterations > 0) o.keyframe_iterations = keyframe_iterations;
+    o.keyframe_downscale = keyframe_downscale;
+    if (polish >= 0) o.polish_iterations = polish;
+    if (min_decrease >= 0) o.min_relative_decrease = min_decrease;
     for (double deg : inits) {
       pose::PoseNoise noise;
       noise.kind = pose::PoseNoise::kFixed;
@@ -278,6 +291,8 @@ int run(int argc, char** argv) {
         row.converged = res.converged();
         row.verdict = pose::verdict_name(res.verdict);
         row.iterations = res.iterations;
+        row.initial_rmse = res.initial_rmse, row.final_rmse = res.final_rmse;
+        row.explained = res.explained, row.coverage = res.coverage;
         rot.push_back(row.rot), frac.push_back(row.frac), ms.push_back(row.ms), its.push_back(row.iterations);
         ok += row.success, conv += row.converged;
         rows.push_back(row);
@@ -314,11 +329,13 @@ int run(int argc, char** argv) {
   // Files.
   if (!out_dir.empty()) {
     if (Status st = platform::make_dirs(out_dir); !st.ok()) die(st.to_string());
-    std::string csv = "solver,budget,init_deg,init_frac,view,final_rot_deg,final_trans_frac,success,verdict,ms,iterations\n";
+    std::string csv = "solver,budget,init_deg,init_frac,view,final_rot_deg,final_trans_frac,success,verdict,ms,iterations,initial_rmse,final_rmse,explained,coverage\n";
     for (const Row& x : rows)
       csv += settings[x.setting].solver + "," + settings[x.setting].budget + "," + f("%g", x.init_deg) + "," +
              f("%g", x.init_frac) + "," + x.view + "," + f("%.6g", x.rot) + "," + f("%.6g", x.frac) + "," +
-             (x.success ? "1" : "0") + "," + x.verdict + "," + f("%.2f", x.ms) + "," + std::to_string(x.iterations) + "\n";
+             (x.success ? "1" : "0") + "," + x.verdict + "," + f("%.2f", x.ms) + "," + std::to_string(x.iterations) + "," +
+             f("%.5g", x.initial_rmse) + "," + f("%.5g", x.final_rmse) + "," + f("%.5g", x.explained) + "," +
+             f("%.5g", x.coverage) + "\n";
     std::string agg_csv =
         "solver,budget,init_deg,init_frac,views,median_final_rot_deg,median_final_trans_frac,success_rate,"
         "converged_rate,median_ms,mean_ms,median_iterations\n";
