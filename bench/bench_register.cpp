@@ -117,7 +117,8 @@ int run(int argc, char** argv) {
   app.add_option("--threads", threads, "worker threads (0: all CPUs)")->capture_default_str();
   int keyframes = 0, keyframe_iterations = 0, keyframe_downscale = 0, polish = -1;
   double min_decrease = -1;
-  int render_polish = -1;
+  int render_polish = -1, polish_downscale = 0;
+  app.add_option("--polish-downscale", polish_downscale, "render polish divisor (0: finest/4)");
   app.add_option("--render-polish", render_polish, "anti-aliased render LM steps at the end below full resolution (-1: default)");
   app.add_option("--keyframes", keyframes, "keyframe solver: keyframes (0: the budget's)");
   app.add_option("--keyframe-iterations", keyframe_iterations, "keyframe solver: LM steps per level (0: the budget's)");
@@ -264,6 +265,7 @@ int run(int argc, char** argv) {
     if (keyframes > 0) o.keyframes = keyframes;
     if (keyframe_iterations > 0) o.keyframe_iterations = keyframe_iterations;
     o.keyframe_downscale = keyframe_downscale;
+    o.polish_downscale = polish_downscale;
     if (polish >= 0) o.polish_iterations = polish;
     if (render_polish >= 0) o.render_polish_iterations = render_polish;
     if (min_decrease >= 0) o.min_relative_decrease = min_decrease;

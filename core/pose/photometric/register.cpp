@@ -58,7 +58,8 @@ struct Registrar::Impl {
   std::vector<float> target, rgb, v_rgb;  // [H, W, 3] of the current level
   // kKeyframe: the keyframe at the finest level (colour, alpha-weighted depth, alpha) and its
   // box-filtered level copies, and the target at the level.
-  std::vector<float> key_rgb, key_depth, key_alpha, lvl_rgb, lvl_depth, lvl_alpha;
+  std::vector<float> key_rgb, key_depth, key_alpha, lvl_rgb, lvl_depth, lvl_alpha, fin_alpha;
+  bool polish_render_valid = false;  // rgb / fin_alpha hold the polish's render at the pose it returned
   int max_w = 0, max_h = 0;
   size_t planned_rows = 0;
   uint64_t bytes = 0;
@@ -68,9 +69,9 @@ struct Registrar::Impl {
   void allocate_images() {
     const size_t px = size_t(max_w) * size_t(max_h) * 3, npx = size_t(max_w) * size_t(max_h);
     for (auto* v : {&target, &rgb, &v_rgb, &key_rgb, &lvl_rgb}) v->assign(px, 0.0f);
-    for (auto* v : {&key_depth, &key_alpha, &lvl_depth, &lvl_alpha}) v->assign(npx, 0.0f);
+    for (auto* v : {&key_depth, &key_alpha, &lvl_depth, &lvl_alpha, &fin_alpha}) v->assign(npx, 0.0f);
   }
-  uint64_t image_bytes() const { return uint64_t(max_w) * uint64_t(max_h) * (5 * 3 + 4) * 4; }
+  uint64_t image_bytes() const { return uint64_t(max_w) * uint64_t(max_h) * (5 * 3 + 5) * 4; }
 
   // Decodes the model's Gaussians for a pose (colours for its view direction).
   // The camera of the last decode and its count (a decode costs as much as a render here: the
@@ -137,11 +138,17 @@ struct Registrar::Impl {
     return c / double(n);
   }
 
-  // The divisor keyframes (and the verdict's render) are rendered at: finer than the finest level,
-  // box-filtered down, so that no level sees the aliasing of sub-pixel Gaussians (at 1/4 a
-  // keyframe at 1/2 still left 0.1-0.5 degree biases on the test scenes; at full 0.01-0.1).
+  // The divisor keyframes are rendered at before being box-filtered down to the levels (no level
+  // sees the aliasing of sub-pixel Gaussians); the polish's remaining bias is what the keyframes'
+  // would be, so they can be coarser.
   int keyframe_scale(int finest) const {
-    const int k = opt.keyframe_downscale > 0 ? opt.keyframe_downscale : std::max(1, finest / 4);
+    const int k = opt.keyframe_downscale > 0 ? opt.keyframe_downscale : std::max(1, finest / 2);
+    return finest % k == 0 ? k : 1;
+  }
+  // The divisor of the render polish and of the verdict's render: at 1/4 a render at 1/2 (box-
+  // filtered) still left 0.1-0.5 degree biases on the test scenes, at full 0.01-0.1.
+  int polish_scale(int finest) const {
+    const int k = opt.polish_downscale > 0 ? opt.polish_downscale : std::max(1, finest / 4);
     return finest % k == 0 ? k : 1;
   }
 
@@ -150,7 +157,7 @@ struct Registrar::Impl {
   // aliasing of a direct low-resolution render. Decodes the model for the pose; the count of
   // decoded Gaussians is returned in *decoded.
   Status render_antialiased(const Camera& full, int finest, size_t* decoded) {
-    const int ks = keyframe_scale(finest);
+    const int ks = polish_scale(finest);
     const Camera kc = scaled_camera(full, ks);
     *decoded = decode(full);
     if (*decoded == 0) return Status::Ok();
@@ -367,7 +374,7 @@ struct Registrar::Impl {
   // Renders the pose at the keyframe divisor with depth and box-filters colour, depth and opacity
   // to the finest level (lvl_*); the Gaussians of the last decode are used.
   Status render_level_from_key(const Camera& full, int finest) {
-    const int ks = keyframe_scale(finest);
+    const int ks = polish_scale(finest);
     const Camera kc = scaled_camera(full, ks);
     const GaussianParams gp = gaussians();
     RenderOptions ro;
@@ -429,6 +436,15 @@ struct Registrar::Impl {
     return used ? total / double(used) : INFINITY;
   }
 
+  // Keeps the polish's render at the accepted pose (rgb, fin_alpha): the verdict's render then costs
+  // nothing (its Gaussians were decoded at the polish's start pose, at most 0.6 degrees away).
+  void keep_polish_render(const PinholeIntrinsics& in) {
+    const size_t n = size_t(in.width) * size_t(in.height);
+    std::copy(lvl_rgb.begin(), lvl_rgb.begin() + std::ptrdiff_t(3 * n), rgb.begin());
+    std::copy(lvl_alpha.begin(), lvl_alpha.begin() + std::ptrdiff_t(n), fin_alpha.begin());
+    polish_render_valid = true;
+  }
+
   // The end of kKeyframe below full resolution: Levenberg-Marquardt against the anti-aliased render
   // itself at the finest level (each trial re-renders at the keyframe divisor). Its fixed point is
   // where the render's residual has no component along the Jacobian, which the keyframe warp's is
@@ -443,6 +459,7 @@ struct Registrar::Impl {
     detail::Vec6 b;
     double c = render_cost(in, &A, &b);
     if (!std::isfinite(c)) return Status::Ok();
+    keep_polish_render(in);
     double lambda = 1e-3;
     for (int it = 0; it < opt.render_polish_iterations; ++it) {
       if (deadline > 0 && platform::now_seconds() > deadline) break;
@@ -461,6 +478,7 @@ struct Registrar::Impl {
           const double decrease = (c - ct) / std::max(c, 1e-30);
           full->pose = trial.pose;
           c = ct, A = At, b = bt;
+          keep_polish_render(in);
           lambda = std::max(lambda / 3, 1e-7);
           accepted = true;
           if (step_small(xi) || decrease < opt.min_relative_decrease) return Status::Ok();
@@ -608,7 +626,7 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
   if (Status st = validate_camera(full); !st.ok()) return invalid_argument("registration: start pose or camera: " + st.message());
   const RegisterOptions& o = d.opt;
   const double t0 = platform::now_seconds();
-  d.decoded_valid = d.key_valid = false;  // the model may have changed since the last call
+  d.decoded_valid = d.key_valid = d.polish_render_valid = false;  // the model may have changed since the last call
   const double deadline = o.time_budget_ms > 0 ? t0 + 1e-3 * o.time_budget_ms : 0.0;
   *out = RegisterResult();
   out->pose = init;
@@ -675,11 +693,17 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
   cam = scaled_camera(current, finest);
   io::box_downsample_rgb(rgb, intr.width, intr.height, finest, d.target.data());
   size_t n_final = 0;
-  GS_RETURN_IF_ERROR(d.render_antialiased(current, finest, &n_final));
   double final_rmse = INFINITY, cover = 0;
-  if (n_final > 0) {
+  if (d.polish_render_valid) {
     final_rmse = d.rmse(cam);
+    std::copy(d.fin_alpha.begin(), d.fin_alpha.end(), d.lvl_alpha.begin());
     cover = d.level_coverage(cam);
+  } else {
+    GS_RETURN_IF_ERROR(d.render_antialiased(current, finest, &n_final));
+    if (n_final > 0) {
+      final_rmse = d.rmse(cam);
+      cover = d.level_coverage(cam);
+    }
   }
   if (!(final_rmse <= out->initial_rmse)) {
     current.pose = init;

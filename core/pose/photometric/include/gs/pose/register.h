@@ -54,8 +54,9 @@ struct RegisterOptions {
   double candidate_angle_deg = 8.0;
   int finest_downscale = 1;      // resolution divisor of the last level (1: full, 4: quarter)
   // kKeyframe: resolution divisor at which keyframes are rendered before being box-filtered down to
-  // the levels (0: max(1, finest_downscale / 2)). Must divide finest_downscale.
-  int keyframe_downscale = 0;
+  // the levels (0: max(1, finest_downscale / 2)), and the one of the render polish and the
+  // verdict's render (0: max(1, finest_downscale / 4)). Each must divide finest_downscale (else 1).
+  int keyframe_downscale = 0, polish_downscale = 0;
   int min_coarse_width = 12;     // the coarsest level is the largest halving at least this wide, px
   int max_levels = 6;            // at most this many levels
   int max_iterations_per_level = 20;  // LM; Adam uses adam_iterations_per_level
