@@ -45,7 +45,7 @@ struct RegisterOptions {
   // kKeyframe below full resolution: LM steps at the end against the anti-aliased render itself
   // (rendered at keyframe_downscale, box-filtered to the finest level; Jacobian from its gradient
   // and depth), one render per trial.
-  int render_polish_iterations = 6;
+  int render_polish_iterations = 4;
   // kKeyframe: at the coarsest level of the first keyframe, start the alignment from this many
   // rotations about the camera centre (the start, then pan/tilt offsets of candidate_angle_deg on a
   // 3x3 grid) and keep the one that ends with the lowest cost: a wider basin for the price of a few
@@ -72,7 +72,7 @@ struct RegisterOptions {
   // an image of something else, or with no contrast at all, explains nothing), the model covers
   // at least min_coverage of the image (mean opacity of the render), and the pose moved at most
   // max_rotation_deg / max_translation (x scene extent) from the start.
-  double max_rmse = 0.09, min_explained = 0.5, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
+  double max_rmse = 0.15, min_explained = 0.5, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
 };
 
 enum class RegisterVerdict {
