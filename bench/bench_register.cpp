@@ -97,7 +97,8 @@ struct Aggregate {
   size_t setting = 0;
   double init_deg = 0, init_frac = 0;
   size_t views = 0;
-  double rot_median = 0, frac_median = 0, success_rate = 0, converged_rate = 0, ms_median = 0, ms_mean = 0,
+  double rot_median = 0, frac_median = 0, success_rate = 0, converged_rate = 0, agreement_rate = 0, cpu_median = 0,
+         ms_median = 0, ms_mean = 0,
          iterations_median = 0;
 };
 
@@ -289,8 +290,8 @@ int run(int argc, char** argv) {
       pose::perturb_poses(noise, centre, radius, start.data(), start.size());
       Aggregate ag;
       ag.setting = si, ag.init_deg = deg, ag.init_frac = noise.translation_frac, ag.views = test_views.size();
-      std::vector<double> rot, frac, ms, its;
-      size_t ok = 0, conv = 0;
+      std::vector<double> rot, frac, ms, its, cpu;
+      size_t ok = 0, conv = 0, agree = 0;
       for (size_t k = 0; k < test_views.size(); ++k) {
         const io::DatasetView& v = *test_views[k];
         const size_t i = test_index[k];
@@ -312,12 +313,14 @@ int run(int argc, char** argv) {
         row.initial_rmse = res.initial_rmse, row.final_rmse = res.final_rmse;
         row.explained = res.explained, row.coverage = res.coverage;
         rot.push_back(row.rot), frac.push_back(row.frac), ms.push_back(row.ms), its.push_back(row.iterations);
-        ok += row.success, conv += row.converged;
+        ok += row.success, conv += row.converged, agree += row.success == row.converged;
+        cpu.push_back(row.cpu);
         rows.push_back(row);
       }
       ag.rot_median = median(rot), ag.frac_median = median(frac), ag.ms_median = median(ms), ag.ms_mean = mean(ms);
       ag.iterations_median = median(its);
       ag.success_rate = double(ok) / double(ag.views), ag.converged_rate = double(conv) / double(ag.views);
+      ag.agreement_rate = double(agree) / double(ag.views), ag.cpu_median = median(cpu);
       std::fprintf(stderr, "bench_register: %s/%s from %g deg: median %.3f deg, success %.0f%%, median %.0f ms\n",
                    s.solver.c_str(), s.budget.c_str(), deg, ag.rot_median, 100 * ag.success_rate, ag.ms_median);
       aggs.push_back(ag);
@@ -335,13 +338,16 @@ int run(int argc, char** argv) {
                                                   : model_path.c_str());
   std::printf("  CPU %s, %s, load %.2f, %d threads; sweep %.1f s\n", mi.cpu_model.c_str(), format_mhz(mi).c_str(),
               load_average(), pool.num_threads(), sweep_seconds);
-  std::printf("  %-6s %-8s %8s %8s | %12s %14s %8s %9s %9s %8s %6s\n", "solver", "budget", "init deg", "init r",
-              "med rot deg", "med trans r", "success", "converged", "med ms", "mean ms", "iters");
+  // (agree: the verdict is `converged` exactly when the view succeeded; cpu/thr: median process CPU
+  // ms per view over the threads, the wall time of a free machine when the work parallelises.)
+  std::printf("  %-6s %-8s %8s %8s | %12s %12s %8s %9s %7s %9s %8s %9s %6s\n", "solver", "budget", "init deg", "init r",
+              "med rot deg", "med trans %r", "success", "converged", "agree", "med ms", "mean ms", "cpu/thr", "iters");
   for (const Aggregate& a : aggs) {
     const Setting& s = settings[a.setting];
-    std::printf("  %-6s %-8s %8g %8g | %12.4f %14.5f %7.0f%% %8.0f%% %9.1f %8.1f %6.0f\n", s.solver.c_str(),
-                s.budget.c_str(), a.init_deg, a.init_frac, a.rot_median, a.frac_median, 100 * a.success_rate,
-                100 * a.converged_rate, a.ms_median, a.ms_mean, a.iterations_median);
+    std::printf("  %-6s %-8s %8g %8g | %12.4f %12.3f %7.0f%% %8.0f%% %6.0f%% %9.1f %8.1f %9.1f %6.0f\n", s.solver.c_str(),
+                s.budget.c_str(), a.init_deg, a.init_frac, a.rot_median, 100 * a.frac_median, 100 * a.success_rate,
+                100 * a.converged_rate, 100 * a.agreement_rate, a.ms_median, a.ms_mean,
+                a.cpu_median / double(pool.num_threads()), a.iterations_median);
   }
 
   // Files.
@@ -356,12 +362,13 @@ int run(int argc, char** argv) {
              f("%.5g", x.coverage) + "," + f("%.2f", x.cpu) + "\n";
     std::string agg_csv =
         "solver,budget,init_deg,init_frac,views,median_final_rot_deg,median_final_trans_frac,success_rate,"
-        "converged_rate,median_ms,mean_ms,median_iterations\n";
+        "converged_rate,median_ms,mean_ms,median_iterations,agreement_rate,median_cpu_ms\n";
     for (const Aggregate& a : aggs)
       agg_csv += settings[a.setting].solver + "," + settings[a.setting].budget + "," + f("%g", a.init_deg) + "," +
                  f("%g", a.init_frac) + "," + std::to_string(a.views) + "," + f("%.6g", a.rot_median) + "," +
                  f("%.6g", a.frac_median) + "," + f("%.4f", a.success_rate) + "," + f("%.4f", a.converged_rate) + "," +
-                 f("%.2f", a.ms_median) + "," + f("%.2f", a.ms_mean) + "," + f("%g", a.iterations_median) + "\n";
+                 f("%.2f", a.ms_median) + "," + f("%.2f", a.ms_mean) + "," + f("%g", a.iterations_median) + "," +
+                 f("%.4f", a.agreement_rate) + "," + f("%.2f", a.cpu_median) + "\n";
 
     const std::string where = fs::path(dataset).filename().string() + ", " + std::to_string(test_views.size()) +
                               " test views, 1/" + std::to_string(downscale) + " resolution";
@@ -415,6 +422,8 @@ int run(int argc, char** argv) {
                     {"median_final_trans_frac", a.frac_median},
                     {"success_rate", a.success_rate},
                     {"converged_rate", a.converged_rate},
+                    {"verdict_agreement_rate", a.agreement_rate},
+                    {"median_cpu_ms", a.cpu_median},
                     {"median_ms", a.ms_median},
                     {"mean_ms", a.ms_mean},
                     {"median_iterations", a.iterations_median}});

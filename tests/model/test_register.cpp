@@ -178,6 +178,21 @@ TEST_CASE("register: the registration loop allocates nothing after set-up") {
   }
 }
 
+TEST_CASE("register: quarter-resolution registration (keyframes, render polish, verdict) allocates nothing") {
+  const Fixture& f = fixture();
+  platform::ThreadPool pool(2);
+  pose::RegisterOptions opt;
+  opt.finest_downscale = 4;
+  auto reg = pose::Registrar::create(f.model, kW, kH, opt, &pool);
+  REQUIRE(reg.ok());
+  pose::RegisterResult r;
+  REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(4, 0.03, 11), &r).ok());  // warm-up
+  test::AllocationScope scope;
+  REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(6, 0.04, 12), &r).ok());
+  CHECK(scope.count() == 0);
+  CHECK(r.iterations > 0);
+}
+
 TEST_CASE("register: hard cases give a verdict not garbage") {
   const Fixture& f = fixture();
   auto reg = pose::Registrar::create(f.model, kW, kH, pose::RegisterOptions{}, nullptr);
