@@ -73,6 +73,15 @@ struct Registrar::Impl {
   }
   uint64_t image_bytes() const { return uint64_t(max_w) * uint64_t(max_h) * (5 * 3 + 5) * 4; }
 
+  // The options of every forward render registration makes (the one place a renderer switch, e.g.
+  // a fixed-point rasteriser, is to be set for all of them).
+  static RenderOptions render_options(bool depth) {
+    RenderOptions ro;
+    ro.validate_inputs = false;  // decoded values are finite by construction
+    ro.depth = depth;
+    return ro;
+  }
+
   // Decodes the model's Gaussians for a pose (colours for its view direction).
   // The camera of the last decode and its count (a decode costs as much as a render here: the
   // decoders run for every anchor in view), so a repeated decode at the same pose is skipped.
@@ -106,9 +115,7 @@ struct Registrar::Impl {
 
   Status render(const Camera& cam) {
     const GaussianParams gp = gaussians();
-    RenderOptions ro;
-    ro.validate_inputs = false;  // decoded values are finite by construction
-    return renderer.forward(cam, gp, ro, rgb.data());
+    return renderer.forward(cam, gp, render_options(false), rgb.data());
   }
 
   double rmse(const Camera& cam) const {
@@ -163,10 +170,7 @@ struct Registrar::Impl {
     if (*decoded == 0) return Status::Ok();
     if (!(key_valid && same_camera(kc, key_cam))) {
       const GaussianParams gp = gaussians();
-      RenderOptions ro;
-      ro.validate_inputs = false;
-      ro.depth = true;
-      GS_RETURN_IF_ERROR(renderer.forward(kc, gp, ro, key_rgb.data(), key_depth.data()));
+      GS_RETURN_IF_ERROR(renderer.forward(kc, gp, render_options(true), key_rgb.data(), key_depth.data()));
       const size_t n = size_t(kc.intr.width) * size_t(kc.intr.height);
       const float* T = renderer.final_transmittance();
       for (size_t i = 0; i < n; ++i) key_alpha[i] = 1.0f - T[i];
@@ -256,10 +260,7 @@ struct Registrar::Impl {
     key_cam = cam;
     key_valid = true;
     const GaussianParams gp = gaussians();
-    RenderOptions ro;
-    ro.validate_inputs = false;
-    ro.depth = true;
-    GS_RETURN_IF_ERROR(renderer.forward(cam, gp, ro, key_rgb.data(), key_depth.data()));
+    GS_RETURN_IF_ERROR(renderer.forward(cam, gp, render_options(true), key_rgb.data(), key_depth.data()));
     const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
     const float* T = renderer.final_transmittance();
     for (size_t i = 0; i < n; ++i) key_alpha[i] = 1.0f - T[i];
@@ -377,11 +378,8 @@ struct Registrar::Impl {
     const int ks = polish_scale(finest);
     const Camera kc = scaled_camera(full, ks);
     const GaussianParams gp = gaussians();
-    RenderOptions ro;
-    ro.validate_inputs = false;
-    ro.depth = true;
     key_valid = false;  // rendered with the Gaussians of the polish's decode, not full's own
-    GS_RETURN_IF_ERROR(renderer.forward(kc, gp, ro, key_rgb.data(), key_depth.data()));
+    GS_RETURN_IF_ERROR(renderer.forward(kc, gp, render_options(true), key_rgb.data(), key_depth.data()));
     const size_t n = size_t(kc.intr.width) * size_t(kc.intr.height);
     const float* T = renderer.final_transmittance();
     for (size_t i = 0; i < n; ++i) key_alpha[i] = 1.0f - T[i];

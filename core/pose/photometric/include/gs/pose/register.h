@@ -39,13 +39,13 @@ namespace gs::pose {
 
 struct RegisterOptions {
   enum Solver { kKeyframe, kGaussNewton, kAdam } solver = kKeyframe;
-  int keyframes = 3;             // kKeyframe: renders (outer rounds) before the polish
+  int keyframes = 2;             // kKeyframe: renders (outer rounds) before the polish
   int keyframe_iterations = 15;  // kKeyframe: LM steps per pyramid level per keyframe
   int polish_iterations = 3;     // kKeyframe: renderer LM steps at the finest level at the end (full resolution)
   // kKeyframe below full resolution: LM steps at the end against the anti-aliased render itself
   // (rendered at keyframe_downscale, box-filtered to the finest level; Jacobian from its gradient
   // and depth), one render per trial.
-  int render_polish_iterations = 4;
+  int render_polish_iterations = 3;
   // kKeyframe: at the coarsest level of the first keyframe, start the alignment from this many
   // rotations about the camera centre (the start, then pan/tilt offsets of candidate_angle_deg on a
   // 3x3 grid) and keep the one that ends with the lowest cost: a wider basin for the price of a few
