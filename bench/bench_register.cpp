@@ -129,6 +129,8 @@ int run(int argc, char** argv) {
   int keyframes = 0, keyframe_iterations = 0, keyframe_downscale = 0, polish = -1;
   double min_decrease = -1;
   int render_polish = -1, polish_downscale = 0;
+  bool fixed_point = false;
+  app.add_flag("--fixed-point", fixed_point, "forward-only renders with the fixed-point rasteriser (RegisterOptions::fixed_point)");
   app.add_option("--polish-downscale", polish_downscale, "render polish divisor (0: finest/4)");
   app.add_option("--render-polish", render_polish, "anti-aliased render LM steps at the end below full resolution (-1: default)");
   app.add_option("--keyframes", keyframes, "keyframe solver: keyframes (0: the budget's)");
@@ -277,6 +279,7 @@ int run(int argc, char** argv) {
     if (keyframe_iterations > 0) o.keyframe_iterations = keyframe_iterations;
     o.keyframe_downscale = keyframe_downscale;
     o.polish_downscale = polish_downscale;
+    o.fixed_point = fixed_point;
     if (polish >= 0) o.polish_iterations = polish;
     if (render_polish >= 0) o.render_polish_iterations = render_polish;
     if (min_decrease >= 0) o.min_relative_decrease = min_decrease;
@@ -438,6 +441,7 @@ int run(int argc, char** argv) {
                         {"anchors", model.anchor_count},
                         {"scene_radius", radius},
                         {"seed", seed},
+                        {"fixed_point", fixed_point},
                         {"threads", pool.num_threads()},
                         {"success_definition", "rotation < 1 deg and translation < 0.01 scene radius"},
                         {"sweep_seconds", sweep_seconds},

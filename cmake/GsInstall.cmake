@@ -140,4 +140,7 @@ Libs: ${pc_libs}
   if(TARGET hbgs)
     install(TARGETS hbgs RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
   endif()
+  if(TARGET hbgs-device)  # the on-device commands without FFmpeg, libcamera and Embree
+    install(TARGETS hbgs-device RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+  endif()
 endfunction()

@@ -11,7 +11,7 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 out=corpus
 rm -rf "$out"
-mkdir -p "$out"/{colmap_text,colmap_binary,ply,image,model,checkpoint,video}
+mkdir -p "$out"/{colmap_text,colmap_binary,ply,image,model,compact,checkpoint,video}
 
 # A tiny scene: 3 views of 40x32 (LPIPS needs 31 px a side) (view 0 is the test view, so 2 train views, as the checkpoint
 # harness's trainer has) and 30 points; a 2-iteration run with the harness's budgets.
@@ -53,6 +53,8 @@ ffmpeg -v error -nostdin -f lavfi -i color=c=gray:s=2x2 -frames:v 1 -pix_fmt gra
 # Model and checkpoint: a first byte 1 asks the harness to keep the checksum matching.
 { printf '\x01'; cat "$tmp/run/model.hbgs"; } >"$out/model/tiny.hbgs"
 { printf '\x01'; cat "$tmp/run/checkpoint.bin"; } >"$out/checkpoint/tiny.ckpt"
+"$hbgs" compact "$tmp/run" --out "$tmp/run/model.hbgc" --no-eval --threads 1 >/dev/null
+{ printf '\x01'; cat "$tmp/run/model.hbgc"; } >"$out/compact/tiny.hbgc"
 
 # Video: 5 frames of 32x24 as H.264/MP4 and MJPEG/AVI.
 ffmpeg -v error -nostdin -f lavfi -i testsrc=size=32x24:rate=5 -frames:v 5 -c:v libx264 -pix_fmt yuv420p "$out/video/tiny.mp4"

@@ -5,15 +5,15 @@
 # the built-in scene, stores each as the float model and, when `hbgs compact` exists, as the compact
 # file, evaluates both on the test views, and writes out/budget_sweep/{sweep.csv,sweep.svg}.
 #   scripts/budget-sweep.sh [OUT]          (default out/budget_sweep; finished runs are reused)
-# Environment: HBGS_SWEEP_SCENES (default "snowmiku_plush fox synth"), HBGS_SWEEP_ANCHORS
+# Environment: HBGS_SWEEP_SCENES (default "snowmiku_plush fox sceaux_castle synth"), HBGS_SWEEP_ANCHORS
 # (default "2000 8000 50000"), HBGS_SWEEP_OFFSETS ("5 10"), HBGS_SWEEP_FEATURES ("16 32"),
 # HBGS_SWEEP_ITERATIONS (1000), HBGS_SWEEP_THREADS (2), GS_JOBS (build jobs, 2).
-# Time: about 40 s per run at 1,000 iterations on 2 cores, so the default 36 runs take ~25 minutes.
+# Time: about 40 s per run at 1,000 iterations on 2 cores, so the default 48 runs take ~35 minutes.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
 out=${1:-out/budget_sweep}
-scenes=${HBGS_SWEEP_SCENES:-snowmiku_plush fox synth}
+scenes=${HBGS_SWEEP_SCENES:-snowmiku_plush fox sceaux_castle synth}
 anchors=${HBGS_SWEEP_ANCHORS:-2000 8000 50000}
 offsets=${HBGS_SWEEP_OFFSETS:-5 10}
 features=${HBGS_SWEEP_FEATURES:-16 32}

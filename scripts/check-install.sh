@@ -61,7 +61,8 @@ cmake --install "$release" --prefix "$work/native" >/dev/null
 need_file "$work/native/lib/cmake/hbgs/hbgsConfig.cmake" "$work/native/lib/cmake/hbgs/hbgsConfigVersion.cmake" \
           "$work/native/lib/cmake/hbgs/hbgsTargets.cmake" "$work/native/lib/pkgconfig/hbgs.pc" \
           "$work/native/include/gs/hbgs.h" "$work/native/include/gs/status.h" "$work/native/lib/libgs_base.a" \
-          "$work/native/bin/hbgs"
+          "$work/native/bin/hbgs" "$work/native/bin/hbgs-device"
+"$work/native/bin/hbgs-device" --version >/dev/null || fail "installed hbgs-device does not run"
 echo "installed: $(find "$work/native" -type f | wc -l) files, $(du -sh "$work/native" | cut -f1)"
 
 step "scene (hbgs synth 64x48, 8 views) and model (hbgs train, 500 iterations)"

@@ -40,7 +40,7 @@ Command add_eval_command(CLI::App& parent) {
   auto args = std::make_shared<EvalCli>();
   gs::jobs::EvaluateRunOptions* o = &args->options;
   CLI::App* sub = parent.add_subcommand("eval", "Evaluate a trained model on its dataset's test views (PSNR, SSIM, LPIPS-Alex)");
-  sub->add_option("model", o->input, "Run folder (from hbgs train) or .hbgs model file")->required();
+  sub->add_option("model", o->input, "Run folder (from hbgs train), .hbgs model file or .hbgc compact model file")->required();
   sub->add_option("--dataset", o->dataset, "COLMAP dataset (default: the one recorded in the run's run.json)");
   sub->add_option("--out", o->out, "Folder for results.json and per_view.json (default: <run>/eval)");
   sub->add_option("--max-width", o->max_width, "Downscale views to at most this width (default: as trained)")
@@ -50,6 +50,7 @@ Command add_eval_command(CLI::App& parent) {
   sub->add_option("--lpips-weights", o->lpips_weights, "LPIPS-Alex weights folder (default: ../shared/data/lpips_alex if present)");
   sub->add_option("--threads", o->threads, "Worker threads (0: all CPUs)")->capture_default_str()->check(CLI::Range(0, 4096));
   sub->add_flag("--renders", o->renders, "Also write the renders to <out>/<split>/<method>/renders/");
+  sub->add_flag("--fixed-point", o->fixed_point, "Render with the on-device fixed-point blending (int16 tile kernel)");
   sub->add_flag("-q,--quiet", args->quiet, "Only the summary");
   return {sub, [args] { return run_eval(*args); }};
 }

@@ -120,7 +120,7 @@ Command add_register_command(CLI::App& parent) {
       "register", "Find the camera pose of an image (or of a dataset's views) against a trained model");
   sub->footer("Exit codes: 0 every result has the verdict converged; 3 a result is poor_fit or diverged (its pose and the "
               "files are still written); 1 an error; 2 a usage error.");
-  sub->add_option("model", o->input, "Run folder (from hbgs train) or .hbgs model file")->required();
+  sub->add_option("model", o->input, "Run folder (from hbgs train), .hbgs model file or .hbgc compact model file")->required();
   sub->add_option("image", o->image, "Image to register (single-image mode; needs --init)");
   sub->add_option("--init", o->init, "Start pose \"qw qx qy qz tx ty tz\" (world-to-camera, COLMAP order)");
   sub->add_option("--camera", o->camera,
@@ -136,6 +136,7 @@ Command add_register_command(CLI::App& parent) {
   sub->add_option("--downscale", o->downscale, "Resolution divisor of the finest level (4: quarter resolution)")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
+  sub->add_flag("--fixed-point", o->fixed_point, "On-device mode: fixed-point keyframe renders (int16 blending)");
   sub->add_option("--solver", o->solver, "keyframe (direct alignment to rendered keyframes, then LM polish), lm (Levenberg-Marquardt with the renderer's analytic pose Jacobian at every level) or adam")
       ->capture_default_str()
       ->check(CLI::IsMember({"keyframe", "lm", "adam"}));

@@ -88,6 +88,7 @@ Command add_render_command(CLI::App& parent) {
             return st.ok() ? std::string() : st.message();
           },
           "R,G,B"));
+  sub->add_flag("--fixed-point", o->fixed_point, "Blend with the on-device fixed-point kernel (int16; colours clamped to [0, 1])");
   sub->add_flag("-q,--quiet", args->quiet, "No per-view progress lines");
   return {sub, [args, max_width] {
             args->options.max_width = max_width->count() > 0 ? args->max_width : -1;

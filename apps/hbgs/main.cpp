@@ -37,11 +37,19 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.fallthrough(false);
 
+#ifdef HBGS_DEVICE
+  // hbgs-device: the on-device subset (no training, capture or video), linked without FFmpeg,
+  // libcamera and Embree, so its footprint is the library's.
+  const hbgs::cli::Command commands[] = {
+      hbgs::cli::add_eval_command(app), hbgs::cli::add_render_command(app), hbgs::cli::add_register_command(app),
+      hbgs::cli::add_compact_command(app),
+  };
+#else
   const hbgs::cli::Command commands[] = {
       hbgs::cli::add_synth_command(app),  hbgs::cli::add_train_command(app), hbgs::cli::add_eval_command(app),
       hbgs::cli::add_render_command(app), hbgs::cli::add_demo_command(app),  hbgs::cli::add_bench_command(app),
       hbgs::cli::add_register_command(app), hbgs::cli::add_ingest_command(app),  hbgs::cli::add_capture_command(app),
-      hbgs::cli::add_compare_poses_command(app),
+      hbgs::cli::add_compare_poses_command(app), hbgs::cli::add_compact_command(app),
   };
 
   if (hbgs::cli::bench_passes_through(argc, argv)) {
@@ -49,6 +57,7 @@ int main(int argc, char** argv) {
     if (!rest.empty() && rest.front() == "--") rest.erase(rest.begin());
     return hbgs::cli::run_bench(rest);
   }
+#endif
 
   // A first word that is not a command gets a message naming it (CLI11 would only say that a
   // subcommand is required).

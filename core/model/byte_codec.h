@@ -10,6 +10,7 @@
 
 #include "../io/io_util.h"
 #include "gs/hash.h"
+#include "gs/model/hybrid_model.h"
 #include "gs/random.h"
 #include "gs/status.h"
 
@@ -117,5 +118,34 @@ class ByteReader {
 using gs::fnv1a64;  // gs/hash.h: detects corruption of model and checkpoint files
 
 using SplitMix64 = gs::SplitMix64;  // gs/random.h
+
+// The model configuration as the model file and the compact file both store it (the same fields
+// in the same order), then the voxel size and scene extent of the model.
+inline void write_model_header(ByteWriter* w, const ModelConfig& c, float voxel_size, float scene_extent) {
+  w->i32(c.k);
+  w->i32(c.feature_dim);
+  w->i32(c.hidden);
+  w->i32(int32_t(c.image_features));
+  w->i32(c.image_feature_dim);
+  w->i32(c.image_feature_hidden);
+  w->u64(c.max_anchors);
+  w->u64(c.max_gaussians);
+  w->f32(c.voxel_size);
+  w->f32(voxel_size);
+  w->f32(scene_extent);
+}
+inline void read_model_header(ByteReader* r, ModelConfig* c, float* voxel_size, float* scene_extent) {
+  c->k = r->i32("k");
+  c->feature_dim = r->i32("the feature dimension");
+  c->hidden = r->i32("the hidden width");
+  c->image_features = ImageFeatureMode(r->i32("the image feature mode"));
+  c->image_feature_dim = r->i32("the image feature dimension");
+  c->image_feature_hidden = r->i32("the image feature hidden width");
+  c->max_anchors = size_t(r->u64("the anchor budget"));
+  c->max_gaussians = size_t(r->u64("the Gaussian budget"));
+  c->voxel_size = r->f32("the configured voxel size");
+  *voxel_size = r->f32("the voxel size");
+  *scene_extent = r->f32("the scene extent");
+}
 
 }  // namespace gs::model::detail

@@ -104,6 +104,7 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
     small = small || v->camera.intr.width < metrics::LpipsAlex::kMinSide || v->camera.intr.height < metrics::LpipsAlex::kMinSide;
   const metrics::LpipsAlex* lpips = small ? nullptr : options.lpips;
   ModelRenderer renderer;
+  renderer.set_options(options.render);
   GS_RETURN_IF_ERROR(renderer.init(model, max_w, max_h, pool));
   std::vector<float> rgb(size_t(max_w) * size_t(max_h) * 3);
   EvalResult result;

@@ -110,6 +110,7 @@ class FloatBackend {
 #ifdef NDEBUG
     ro.validate_inputs = false;  // decoded values are finite by construction; debug builds check
 #endif
+    ro.fixed_point = fixed_point_raster;
     Status st = renderer_->forward(cam, gp, ro, rgb);
     // The tile-intersection count depends on the Gaussians' screen sizes, which training changes;
     // when a view needs more than planned, re-plan once with 1.5x headroom (a rare allocation, not
@@ -126,6 +127,9 @@ class FloatBackend {
     return st;
   }
   int replans() const { return replans_; }
+  // render_fwd blends with the fixed-point tile kernel (RenderOptions::fixed_point): the on-device
+  // render path; training never sets it.
+  bool fixed_point_raster = false;
 
   Status render_bwd(const float* v_rgb, float* v_means, float* v_log_scales, float* v_quats, float* v_opacities,
                     float* v_colors, float* v_means2d, double* v_pose) {
@@ -180,7 +184,8 @@ class FloatBackend {
 inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, size_t rows, int max_width, int max_height,
                                                     int ws_width, int ws_height, platform::ThreadPool* pool,
                                                     const simd::KernelTable* kernels, Renderer* renderer,
-                                                    FloatBackend* backend, StepWorkspace<float>* ws) {
+                                                    FloatBackend* backend, StepWorkspace<float>* ws,
+                                                    bool training = true) {
   const size_t K = size_t(model.config.k);
   RenderCapacity rc;
   rc.max_gaussians = rows * K;
@@ -193,7 +198,7 @@ inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, si
   for (const Mlp& m : model.mlps) max_params = std::max(max_params, m.params.size());
   backend->init(renderer, kernels, pool, max_params, max_width);
   const ModelParamsT<float> p = model_params(model);
-  ws->reserve(rows, model.config.k, p.shapes, p.image_feature_dim, ws_width, ws_height);
+  ws->reserve(rows, model.config.k, p.shapes, p.image_feature_dim, ws_width, ws_height, training);
   return rc;
 }
 

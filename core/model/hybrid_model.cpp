@@ -9,6 +9,7 @@
 
 #include "byte_codec.h"
 #include "gs/model/anchors.h"
+#include "gs/model/compact_model.h"
 #include "gs/platform/file.h"
 
 namespace gs::model {
@@ -40,6 +41,8 @@ void init_mlp(Mlp* mlp, const simd::MlpShape& s, detail::SplitMix64* rng) {
 }
 
 }  // namespace
+
+simd::MlpShape model_mlp_shape(const ModelConfig& config, int id) { return mlp_shape(config, id); }
 
 const char* image_feature_mode_name(ImageFeatureMode mode) {
   return mode == ImageFeatureMode::kPaper ? "paper" : "none";
@@ -78,8 +81,9 @@ Status ModelConfig::validate() const {
 
 uint64_t HybridModel::file_bytes() const { return uint64_t(serialize_model(*this).size()); }
 
-// Rows for `cap` anchors: the budget when training, the stored count when loading (a file that
-// declares a 50-million-anchor budget but holds 100 anchors gets 100 rows).
+// Rows for `cap` anchors: 1.25 x the initial anchors when creating (the trainer grows them), the
+// stored count when loading (a file that declares a 50-million-anchor budget but holds 100 anchors
+// gets 100 rows).
 static void allocate_rows(HybridModel* m, size_t cap) {
   const ModelConfig& c = m->config;
   m->positions.assign(cap * 3, 0.0f);
@@ -111,7 +115,9 @@ Expected<HybridModel> create_model(const ModelConfig& config, const float* xyz, 
     return capacity_exceeded("model: voxel size " + std::to_string(anchors->voxel_size) + " gives " + std::to_string(M) +
                              " anchors, more than the budget of " + std::to_string(config.anchor_capacity()) +
                              " (raise --max-anchors / --max-gaussians or the voxel size)");
-  allocate_rows(&m, config.anchor_capacity());
+  // Rows for the initial anchors and a quarter more (at least 1,024), within the budget: the
+  // trainer grows them as densification adds anchors, so memory follows the scene, not the budget.
+  allocate_rows(&m, std::min(config.anchor_capacity(), std::max<size_t>(M + M / 4, 1024)));
   m.anchor_count = M;
   m.voxel_size = anchors->voxel_size;
   m.scene_extent = scene_extent;
@@ -130,17 +136,7 @@ std::vector<uint8_t> serialize_model(const HybridModel& m) {
   const ModelConfig& c = m.config;
   w.raw(kModelMagic, 8);
   w.u32(kModelFileVersion);
-  w.i32(c.k);
-  w.i32(c.feature_dim);
-  w.i32(c.hidden);
-  w.i32(int32_t(c.image_features));
-  w.i32(c.image_feature_dim);
-  w.i32(c.image_feature_hidden);
-  w.u64(c.max_anchors);
-  w.u64(c.max_gaussians);
-  w.f32(c.voxel_size);
-  w.f32(m.voxel_size);
-  w.f32(m.scene_extent);
+  detail::write_model_header(&w, c, m.voxel_size, m.scene_extent);
   const size_t M = m.anchor_count;
   w.u64(M);
   w.floats(m.positions.data(), M * 3);
@@ -174,17 +170,7 @@ Expected<HybridModel> deserialize_model(const uint8_t* data, size_t size, const 
                        std::to_string(kModelFileVersion) + " (retrain, or use the hbgs release that wrote it)");
   HybridModel m;
   ModelConfig& c = m.config;
-  c.k = r.i32("k");
-  c.feature_dim = r.i32("the feature dimension");
-  c.hidden = r.i32("the hidden width");
-  c.image_features = ImageFeatureMode(r.i32("the image feature mode"));
-  c.image_feature_dim = r.i32("the image feature dimension");
-  c.image_feature_hidden = r.i32("the image feature hidden width");
-  c.max_anchors = size_t(r.u64("the anchor budget"));
-  c.max_gaussians = size_t(r.u64("the Gaussian budget"));
-  c.voxel_size = r.f32("the configured voxel size");
-  m.voxel_size = r.f32("the voxel size");
-  m.scene_extent = r.f32("the scene extent");
+  detail::read_model_header(&r, &c, &m.voxel_size, &m.scene_extent);
   const uint64_t M = r.u64("the anchor count");
   if (!r.status().ok()) return r.status();
   Status valid = c.validate();
@@ -277,6 +263,13 @@ Status save_model(const HybridModel& model, const std::string& path) {
 Expected<HybridModel> load_model(const std::string& path) {
   Expected<std::vector<uint8_t>> bytes = platform::read_file(path);
   if (!bytes.ok()) return bytes.status();
+  if (is_compact_file(bytes->data(), bytes->size())) {
+    Expected<CompactModel> compact = deserialize_compact(bytes->data(), bytes->size(), path);
+    if (!compact.ok()) return compact.status();
+    HybridModel m = dequantize(*compact);
+    if (Status st = check_model_finite(m, path); !st.ok()) return parse_error(st.message());
+    return m;
+  }
   return deserialize_model(bytes->data(), bytes->size(), path);
 }
 

@@ -100,6 +100,9 @@ struct Trainer::Impl {
   std::vector<uint8_t> pruned;                     // [cap]
   uint64_t planned_bytes = 0;
   int nonfinite_steps = 0, nonfinite_in_a_row = 0, first_nonfinite = 0;
+  int plan_w = 1, plan_h = 1;  // largest training view: what the pipeline is planned for
+  Status growth_status;        // a failed growth (allocation) reported by step()
+  int growths = 0;             // times the rows grew (each one allocation, at a densification step)
 
   // True when every live gradient (and the pose twist) is finite. The exponent bits are tested
   // as integers so that the scan vectorises (a float reduction would not, without fast-math).
@@ -121,6 +124,66 @@ struct Trainer::Impl {
   }
 
   size_t cap() const { return model.capacity(); }
+  size_t budget() const { return model.config.anchor_capacity(); }
+
+  // Plans every capacity-sized array for cap() rows: the renderer, decoder workspace and
+  // registrar, the densification statistics and growth scratch (resize: live rows keep their
+  // values), and the byte count. Called at creation and after the rows grow.
+  Status plan(const TrainOptions& options) {
+    const size_t c = cap(), K = size_t(k());
+    Expected<RenderCapacity> rc = detail::plan_model_pipeline(model, c, plan_w, plan_h, plan_w, plan_h, pool, kernels,
+                                                              &renderer, &backend, &ws);
+    if (!rc.ok()) return rc.status();
+    opacity_accum.resize(c, 0.0f);
+    anchor_seen.resize(c, 0);
+    grad_accum.resize(c * K, 0.0f);
+    grad_denom.resize(c * K, 0);
+    existing_cells.resize(c, CellKey{0, 0, 0});
+    cand.resize(c * K, {CellKey{0, 0, 0}, 0u});
+    pruned.resize(c, 0);
+    uint64_t bytes = Renderer::plan_bytes(*rc);
+    registrar.reset();
+    if (options.pose_register_every > 0) {
+      pose::RegisterOptions ro;
+      ro.max_iterations_per_level = 10;
+      Expected<std::unique_ptr<pose::Registrar>> reg = pose::Registrar::create(model, plan_w, plan_h, ro, pool, kernels, c);
+      if (!reg.ok()) return reg.status();
+      registrar = std::move(reg).value();
+      bytes += registrar->planned_bytes();
+    }
+    bytes += uint64_t(model.positions.size() + model.offsets.size() + model.log_scales.size() + model.features.size() +
+                      model.image_raw.size()) * 4;
+    for (const ParamGroup& g : groups) bytes += uint64_t(g.grad.size() * 3) * 4;
+    bytes += uint64_t(ws.X.size() * 3 + ws.means.size() * 4 + ws.quats.size() * 2 + ws.rgb.size() * 2) * 4;
+    bytes += uint64_t(c * K) * (4 + 4 + sizeof(cand[0]));
+    planned_bytes = bytes;
+    return Status::Ok();
+  }
+
+  // Memory follows the scene: the rows (model, Adam moments, gradients, statistics, pipeline) grow
+  // to hold `rows` anchors, by at least half again, never past the anchor budget. Values of the
+  // live rows are kept; results do not depend on the capacity.
+  Status ensure_capacity(size_t rows) {
+    if (rows <= cap()) return Status::Ok();
+    const size_t c = std::min(budget(), std::max(rows, cap() + cap() / 2));
+    const ModelConfig& mc = model.config;
+    model.positions.resize(c * 3, 0.0f);
+    model.offsets.resize(c * size_t(mc.k) * 3, 0.0f);
+    model.log_scales.resize(c * 6, 0.0f);
+    model.features.resize(c * size_t(mc.feature_dim), 0.0f);
+    if (paper()) model.image_raw.resize(c * size_t(kImageRawDim), 0.0f);
+    float* const anchor_params[3] = {model.offsets.data(), model.log_scales.data(), model.features.data()};
+    for (size_t gi = 0; gi < groups.size(); ++gi) {
+      ParamGroup& g = groups[gi];
+      if (!g.row_floats) continue;
+      g.param = anchor_params[gi];  // the anchor groups come first, in this order (build_groups)
+      g.grad.resize(g.row_floats * c, 0.0f);
+      g.m.resize(g.row_floats * c, 0.0f);
+      g.v.resize(g.row_floats * c, 0.0f);
+    }
+    ++growths;
+    return plan(opt);
+  }
   int k() const { return model.config.k; }
   bool paper() const { return model.config.image_features == ImageFeatureMode::kPaper; }
 
@@ -323,6 +386,11 @@ struct Trainer::Impl {
       cand[nc++] = {cell_of(mu, size), uint32_t(idx)};
     }
     if (nc == 0) return 0;
+    // Room for every candidate cell (at most nc new anchors), within the budget.
+    if (Status st = ensure_capacity(std::min(budget(), M + nc)); !st.ok()) {
+      growth_status = st;
+      return 0;
+    }
     std::sort(cand.begin(), cand.begin() + std::ptrdiff_t(nc));
     for (size_t i = 0; i < M; ++i) existing_cells[i] = cell_of(&model.positions[3 * i], size);
     std::sort(existing_cells.begin(), existing_cells.begin() + std::ptrdiff_t(M));
@@ -443,38 +511,15 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   d.pose_v.assign(6 * train_views.size(), 0.0);
   d.pose_steps.assign(train_views.size(), 0);
   if (d.paper()) GS_RETURN_IF_ERROR(d.bank.init(d.cameras, images));
-  const size_t cap = d.cap(), K = size_t(d.k());
-  Expected<RenderCapacity> rc = detail::plan_model_pipeline(d.model, cap, max_w, max_h, max_w, max_h, pool, d.kernels,
-                                                            &d.renderer, &d.backend, &d.ws);
-  if (!rc.ok()) return rc.status();
+  d.plan_w = max_w;
+  d.plan_h = max_h;
   d.target.assign(size_t(max_w) * size_t(max_h) * 3, 0.0f);
   d.build_groups();
   d.rng.state = options.seed * 0x9E3779B97F4A7C15ull + 7;
   d.view_order.assign(train_views.size(), 0);
   d.view_pos = d.view_order.size();  // first call shuffles
-  d.opacity_accum.assign(cap, 0.0f);
-  d.anchor_seen.assign(cap, 0);
-  d.grad_accum.assign(cap * K, 0.0f);
-  d.grad_denom.assign(cap * K, 0);
-  d.existing_cells.assign(cap, CellKey{0, 0, 0});
-  d.cand.assign(cap * K, {CellKey{0, 0, 0}, 0u});
-  d.pruned.assign(cap, 0);
+  GS_RETURN_IF_ERROR(d.plan(options));
   if (d.paper()) d.bank.compute(d.model.positions.data(), d.model.anchor_count, d.model.image_raw.data(), pool);
-  uint64_t bytes = Renderer::plan_bytes(*rc);
-  if (options.pose_register_every > 0) {
-    pose::RegisterOptions ro;
-    ro.max_iterations_per_level = 10;
-    Expected<std::unique_ptr<pose::Registrar>> reg = pose::Registrar::create(d.model, max_w, max_h, ro, pool, d.kernels, cap);
-    if (!reg.ok()) return reg.status();
-    d.registrar = std::move(reg).value();
-    bytes += d.registrar->planned_bytes();
-  }
-  bytes += uint64_t(d.model.positions.size() + d.model.offsets.size() + d.model.log_scales.size() +
-                    d.model.features.size() + d.model.image_raw.size()) * 4;
-  for (const ParamGroup& g : d.groups) bytes += uint64_t(g.grad.size() * 3) * 4;
-  bytes += uint64_t(d.ws.X.size() * 3 + d.ws.means.size() * 4 + d.ws.quats.size() * 2 + d.ws.rgb.size() * 2) * 4;
-  bytes += uint64_t(cap * K) * (4 + 4 + sizeof(d.cand[0]));
-  d.planned_bytes = bytes;
   return t;
 }
 
@@ -519,6 +564,7 @@ Status Trainer::step(IterationStats* stats) {
   bool adjusted = false;
   if (it > d.opt.update_from && it % d.opt.update_interval == 0 && it < d.opt.update_until) {
     d.adjust_anchors();
+    if (!d.growth_status.ok()) return d.growth_status;
     adjusted = true;
   }
   bool refresh = d.paper() && d.opt.image_feature_refresh > 0 && it % d.opt.image_feature_refresh == 0;
@@ -640,9 +686,12 @@ Status Trainer::load_checkpoint(const std::string& path) {
   if (!r.status().ok()) return r.status();
   if (ngroups != d.groups.size() || view_pos > order.size() || iteration < 0)
     return parse_error(path + ": inconsistent optimiser state");
-  // Everything is checked: adopt the model into the planned arrays (no reallocation).
+  // Everything is checked: adopt the model into the planned arrays (grown first if the checkpoint
+  // holds more anchors than this trainer has rows).
   HybridModel& m = d.model;
   const size_t M = model->anchor_count, K = size_t(a.k);
+  if (M > d.budget()) return parse_error(path + ": the checkpoint holds more anchors than the budget");
+  GS_RETURN_IF_ERROR(d.ensure_capacity(M));
   auto adopt = [](std::vector<float>& dst, const std::vector<float>& src, size_t n) { std::copy(src.begin(), src.begin() + std::ptrdiff_t(n), dst.begin()); };
   adopt(m.positions, model->positions, M * 3);
   adopt(m.offsets, model->offsets, M * K * 3);
@@ -685,10 +734,17 @@ struct ModelRenderer::Impl {
   detail::FloatBackend backend;
   StepWorkspace<float> ws;
   size_t capacity = 0;
+  ModelRenderOptions options;
+  double decode_ms = 0, forward_ms = 0;
 };
 
 ModelRenderer::ModelRenderer() : impl_(new Impl) {}
 ModelRenderer::~ModelRenderer() = default;
+
+void ModelRenderer::set_options(const ModelRenderOptions& options) {
+  impl_->options = options;
+  impl_->backend.fixed_point_raster = options.fixed_point_raster;
+}
 
 Status ModelRenderer::init(const HybridModel& model, int max_width, int max_height, platform::ThreadPool* pool,
                            const simd::KernelTable* kernels) {
@@ -696,9 +752,11 @@ Status ModelRenderer::init(const HybridModel& model, int max_width, int max_heig
   const simd::KernelTable* kt = kernels ? kernels : &simd::best_kernel_table();
   const size_t cap = std::max<size_t>(model.anchor_count, 1);
   Expected<RenderCapacity> rc = detail::plan_model_pipeline(model, cap, max_width, max_height, max_width, max_height, pool,
-                                                            kt, &impl_->renderer, &impl_->backend, &impl_->ws);
+                                                            kt, &impl_->renderer, &impl_->backend, &impl_->ws,
+                                                            /*training=*/false);
   if (!rc.ok()) return rc.status();
   impl_->capacity = cap;
+  impl_->backend.fixed_point_raster = impl_->options.fixed_point_raster;
   return Status::Ok();
 }
 
@@ -708,9 +766,17 @@ Status ModelRenderer::render(const HybridModel& model, const Camera& camera, flo
   GS_RETURN_IF_ERROR(validate_camera(camera));
   ModelParamsT<float> p = detail::model_params(model);
   size_t V = 0;
+  const uint64_t t0 = platform::now_ns();
   const size_t N = decode_view(d.backend, p, camera, d.ws, &V);
+  const uint64_t t1 = platform::now_ns();
   if (gaussians) *gaussians = N;
-  return d.backend.render_fwd(camera, d.ws.ng, rgb);
+  const Status st = d.backend.render_fwd(camera, d.ws.ng, rgb);
+  d.decode_ms = double(t1 - t0) * 1e-6;
+  d.forward_ms = double(platform::now_ns() - t1) * 1e-6;
+  return st;
 }
+
+double ModelRenderer::last_decode_ms() const { return impl_->decode_ms; }
+double ModelRenderer::last_forward_ms() const { return impl_->forward_ms; }
 
 }  // namespace gs::model

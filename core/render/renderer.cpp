@@ -121,10 +121,11 @@ struct Renderer::Impl {
   RenderOptions options;
   simd::ProjectParams pp;
   simd::RasterParams rp;
+  simd::QRasterParams qrp;
   size_t num_isects = 0;
   int tiles = 0;
   float campos[3];
-  bool forward_ok = false;  // the last forward() completed (pose_normal_equations needs its state)
+  bool forward_ok = false;  // the last forward() completed in float (backward and pose_normal_equations need its state)
 
   void carve(Carver& c, const RenderCapacity& cap) {
     const uint64_t G = cap.max_gaussians, I = cap.max_isects, P = uint64_t(cap.max_width) * uint64_t(cap.max_height);
@@ -451,6 +452,28 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
   }
   m.num_isects = size_t(total);
 
+  // 2b. Fixed point: each visible Gaussian's record becomes its integer record in place (binning,
+  // the last reader of the float fields, is done; a QSplat fills a float record's slot).
+  if (options.fixed_point) {
+    float depth_scale = 0;
+    for (size_t i = 0; i < n; ++i)
+      if (m.radii[i] != 0) depth_scale = std::max(depth_scale, m.depths[i]);
+    if (!(depth_scale > 0)) depth_scale = 1;
+    m.qrp.width = W;
+    m.qrp.height = H;
+    for (int c = 0; c < 3; ++c) m.qrp.background[c] = simd::q15_from_unit(options.background[c]);
+    m.qrp.depth_scale = depth_scale;
+    auto to_fixed = [&](size_t b, size_t e, int) {
+      for (size_t i = b; i < e; ++i) {
+        if (m.radii[i] == 0) continue;
+        simd::QSplat q;
+        simd::qsplat_from_record(m.records + i * simd::kSplatStride, depth_scale, &q);
+        std::memcpy(m.records + i * simd::kSplatStride, &q, sizeof(q));
+      }
+    };
+    run_parallel(m.pool, n, kProjectGrain, to_fixed);
+  }
+
   // 3. Per tile: sort by (depth, id), copy the records in that order, blend.
   auto raster = [&](size_t b, size_t e, int) {
     for (size_t tile = b; tile < e; ++tile) {
@@ -461,12 +484,18 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
         std::memcpy(m.splats + size_t(k) * simd::kSplatStride, m.records + size_t(uint32_t(m.keys[k])) * simd::kSplatStride,
                     sizeof(float) * simd::kSplatStride);
       const int tx = int(tile) % pp.tiles_x, ty = int(tile) / pp.tiles_x;
-      m.kernels->raster_fwd_tile(&m.rp, tx, ty, m.splats + size_t(begin) * simd::kSplatStride,
-                                 int32_t(end - begin), out_rgb, m.final_T, m.last, options.depth ? out_depth : nullptr);
+      if (options.fixed_point) {
+        simd::QSplat* q = reinterpret_cast<simd::QSplat*>(m.splats + size_t(begin) * simd::kSplatStride);
+        m.kernels->qraster_fwd_tile(&m.qrp, tx, ty, q, int32_t(end - begin), out_rgb, m.final_T, m.last,
+                                    options.depth ? out_depth : nullptr);
+      } else {
+        m.kernels->raster_fwd_tile(&m.rp, tx, ty, m.splats + size_t(begin) * simd::kSplatStride,
+                                   int32_t(end - begin), out_rgb, m.final_T, m.last, options.depth ? out_depth : nullptr);
+      }
     }
   };
   run_parallel(m.pool, size_t(m.tiles), 1, raster);
-  m.forward_ok = true;
+  m.forward_ok = !options.fixed_point;
   return Status::Ok();
 }
 
@@ -474,6 +503,7 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
   Impl& m = *impl_;
   if (!m.arena) return invalid_argument("Renderer::backward before init");
   if (!v_rgb || !grads) return invalid_argument("Renderer::backward: null gradient buffer");
+  if (!m.forward_ok) return invalid_argument("Renderer::backward: no successful float forward() (a fixed-point forward has no backward)");
   const GaussianParams& params = m.params;
   const size_t n = params.count;
   const simd::ProjectParams& pp = m.pp;

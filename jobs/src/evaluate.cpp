@@ -37,6 +37,7 @@ Status evaluate_run(const EvaluateRunOptions& a, EvaluateRunSummary* summary) {
   platform::ThreadPool pool(a.threads);
   model::EvalOptions eo;
   eo.lpips = lpips->get();
+  eo.render.fixed_point_raster = a.fixed_point;
   if (a.renders) eo.render_dir = s.render_dir = (fs::path(s.out_dir) / a.split / a.method / "renders").string();
   const double t0 = platform::now_seconds();
   Expected<model::EvalResult> r = model::evaluate_views(*model, (*data)->views, eo, &pool);
@@ -54,6 +55,7 @@ Status evaluate_run(const EvaluateRunOptions& a, EvaluateRunSummary* summary) {
                           {"anchors", model->anchor_count},
                           {"mean_gaussians_per_view", s.mean_gaussians},
                           {"render_ms_median", r->render_ms_median},
+                          {"fixed_point", a.fixed_point},
                           {"image_features", model::image_feature_mode_name(model->config.image_features)}};
   if (eo.lpips) extra["lpips_backbone"] = metrics::LpipsAlex::kLabel;
   std::string note;

@@ -111,6 +111,7 @@ Status render_model(const RenderRunOptions& a, const std::function<void(const Re
   platform::ThreadPool pool(a.threads);
   model::EvalOptions eo;
   eo.render_dir = a.out;
+  eo.render.fixed_point_raster = a.fixed_point;
   Expected<model::EvalResult> r = model::evaluate_views(*model, (*data)->views, eo, &pool);
   if (!r.ok()) return r.status();
 
@@ -266,6 +267,7 @@ Status render_run(const RenderRunOptions& a, const std::function<void(const Rend
   GS_RETURN_IF_ERROR(renderer.init(cap, &pool, kernels));
 
   RenderOptions ropt;
+  ropt.fixed_point = a.fixed_point;
   for (int k = 0; k < 3; ++k) ropt.background[k] = background[k];
   ropt.validate_inputs = false;  // validated once above; the timings measure rendering only
   std::vector<float> rgb(size_t(max_w) * size_t(max_h) * 3);

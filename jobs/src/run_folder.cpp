@@ -4,11 +4,14 @@
 #include "gs/jobs/run_folder.h"
 
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <system_error>
 
 #include <nlohmann/json.hpp>
 
+#include "gs/model/compact_model.h"
 #include "gs/platform/file.h"
 #include "gs/platform/path.h"
 #include "json_util.h"
@@ -70,7 +73,14 @@ uint64_t file_size_or_zero(const std::string& path) {
 bool is_model_input(const std::string& path) {
   std::error_code ec;
   const fs::path p(path);
-  if (fs::is_regular_file(p, ec)) return p.extension() == ".hbgs";
+  if (fs::is_regular_file(p, ec)) {
+    if (p.extension() == ".hbgs" || p.extension() == ".hbgc") return true;
+    // Any model file by its magic: float "HBGSMODL" or compact "HBGSCMPT".
+    uint8_t head[8] = {};
+    std::ifstream f(p, std::ios::binary);
+    if (!f.read(reinterpret_cast<char*>(head), 8)) return false;
+    return std::memcmp(head, "HBGSMODL", 8) == 0 || model::is_compact_file(head, 8);
+  }
   return fs::is_directory(p, ec) && (fs::exists(p / kRunJson, ec) || fs::exists(p / kModelFile, ec));
 }
 
@@ -108,6 +118,8 @@ Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& r
   if (!platform::is_directory(root)) return invalid_argument("dataset folder " + root + " not found");
   io::DatasetOptions opt;
   opt.max_width = max_width;
+  if (split == "test") opt.images = io::DatasetOptions::Images::kTest;
+  if (split == "train") opt.images = io::DatasetOptions::Images::kTrain;
   Expected<io::Dataset> ds = io::load_dataset(root, opt);
   if (!ds.ok()) return ds.status();
   auto out = std::make_unique<LoadedDataset>();

@@ -4,6 +4,7 @@
 // and the zero-allocation guarantee after warm-up.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -239,6 +240,64 @@ TEST_CASE("renderer: forward and backward allocate nothing after warm-up") {
   }
   CHECK(scope.count() == 0);
   CHECK(r.stats().visible > 0);
+}
+
+// The on-device path: RenderOptions::fixed_point. On every kernel table the image stays within the
+// fixed-point error budget of the float one (colours in [0, 1]: the fixed path clamps them), depth
+// too; nothing is allocated after warm-up, and backward() refuses to follow a fixed-point forward.
+// (The blending kernels are bit-exact across tables, test_qraster; the float projection before them
+// is not, so images of two tables may differ by the rounding of a splat's integer record.)
+TEST_CASE("renderer: fixed-point forward is close to float on every table and allocation-free") {
+  std::mt19937_64 rng(171);
+  View<double> vd = gs::test::random_view(rng, 83, 61);
+  gs::test::SceneSpec spec;
+  spec.count = 1500;
+  Scene<double> sd = gs::test::random_scene(rng, vd, spec);
+  for (double& c : sd.colors) c = std::clamp(c, 0.0, 1.0);
+  const Scene<float> s = gs::test::to_float(sd);
+  const View<float> v = gs::test::to_float(vd);
+  const gs::Camera cam = gs::test::to_camera(v);
+  const gs::GaussianParams p = gs::test::to_params(s);
+  const size_t P = size_t(v.width) * v.height;
+  gs::platform::ThreadPool pool(2);
+  gs::RenderOptions fopt, qopt;
+  fopt.depth = qopt.depth = true;
+  qopt.fixed_point = true;
+  const gs::simd::KernelTable* tables[8];
+  int nt = gs::simd::available_simd_kernel_tables(tables, 8);
+  tables[nt++] = &gs::simd::ref_kernel_table();
+  for (int t = 0; t < nt; ++t) {
+    CAPTURE(std::string(tables[t]->isa));
+    gs::Renderer r;
+    REQUIRE(r.init(gs::RenderCapacity{s.n, 0, v.width, v.height}, &pool, tables[t]).ok());
+    std::vector<float> frgb(3 * P), fdepth(P), qrgb(3 * P), qdepth(P);
+    REQUIRE(r.forward(cam, p, fopt, frgb.data(), fdepth.data()).ok());
+    REQUIRE(r.forward(cam, p, qopt, qrgb.data(), qdepth.data()).ok());
+    double worst = 0, sum = 0, depth_worst = 0, depth_max = 0;
+    for (size_t i = 0; i < 3 * P; ++i) {
+      const double e = std::fabs(double(qrgb[i]) - double(frgb[i])) * 255.0;
+      worst = std::max(worst, e);
+      sum += e;
+    }
+    for (size_t i = 0; i < P; ++i) {
+      depth_worst = std::max(depth_worst, std::fabs(double(qdepth[i]) - double(fdepth[i])));
+      depth_max = std::max(depth_max, double(fdepth[i]));
+    }
+    INFO("fixed vs float: colour max " << worst << ", mean " << sum / double(3 * P) << " 8-bit levels; depth max " << depth_worst);
+    CHECK(worst < 3.0);
+    CHECK(sum / double(3 * P) < 0.1);
+    CHECK(depth_worst <= 2e-3 * std::max(1.0, depth_max));
+    std::vector<float> v_rgb(3 * P, 0.1f), vm(3 * s.n), vs(3 * s.n), vq(4 * s.n), vo(s.n), vc(3 * s.n), vm2(2 * s.n);
+    gs::GaussianGrads g;
+    g.v_means = vm.data(); g.v_log_scales = vs.data(); g.v_quats = vq.data(); g.v_opacities = vo.data();
+    g.v_colors = vc.data(); g.v_means2d = vm2.data();
+    const gs::Status refused = r.backward(v_rgb.data(), &g);
+    CHECK_FALSE(refused.ok());
+    CHECK(refused.message().find("fixed-point") != std::string::npos);
+    gs::test::AllocationScope scope;
+    for (int frame = 0; frame < 3; ++frame) REQUIRE(r.forward(cam, p, qopt, qrgb.data(), qdepth.data()).ok());
+    CHECK(scope.count() == 0);
+  }
 }
 
 TEST_CASE("renderer: NaN and Inf inputs are refused with a clear error") {

@@ -327,6 +327,39 @@ RunResult run(std::unique_ptr<Trainer>& t, int until, const std::string& save_pa
   return r;
 }
 
+// Memory follows the scene: a model with rows for barely its initial anchors grows them at
+// densification steps (the only steps that may allocate) up to the budget, and trains exactly like
+// the same model given rows for the whole budget up front.
+HybridModel with_rows(HybridModel m, size_t rows) {
+  const ModelConfig& c = m.config;
+  m.positions.resize(rows * 3, 0.0f);
+  m.offsets.resize(rows * size_t(c.k) * 3, 0.0f);
+  m.log_scales.resize(rows * 6, 0.0f);
+  m.features.resize(rows * size_t(c.feature_dim), 0.0f);
+  m.image_raw.resize(rows * size_t(kImageRawDim), 0.0f);
+  return m;
+}
+
+TEST_CASE("trainer: rows grow with the anchors, up to the budget, with results identical to full-budget rows") {
+  const ModelConfig c = config(3000, 30000);
+  const HybridModel m0 = initial_model(c);
+  const size_t M0 = m0.anchor_count;
+  auto tight = make_trainer(with_rows(m0, M0 + 1), busy_options(60), nullptr);
+  auto full = make_trainer(with_rows(m0, c.anchor_capacity()), busy_options(60), nullptr);
+  CHECK(tight->model().capacity() == M0 + 1);
+  const RunResult a = run(tight, 60), b = run(full, 60);
+  MESSAGE("anchors " << M0 << " -> " << tight->model().anchor_count << "; rows " << M0 + 1 << " -> " << tight->model().capacity()
+                     << " (budget " << c.anchor_capacity() << "); planned " << tight->planned_bytes() << " against "
+                     << full->planned_bytes() << " bytes");
+  CHECK(tight->model().anchor_count > M0 + 1);  // it had to grow
+  CHECK(tight->model().capacity() >= tight->model().anchor_count);
+  CHECK(tight->model().capacity() <= c.anchor_capacity());
+  CHECK(tight->planned_bytes() < full->planned_bytes());
+  CHECK(a.loss == b.loss);
+  CHECK(a.model == b.model);
+  CHECK(a.poses == b.poses);
+}
+
 void check_resume(platform::ThreadPool* pool) {
   test::TempDir dir("gs_trainer");
   const std::string ckpt = dir / "ckpt.bin";

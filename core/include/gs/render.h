@@ -56,6 +56,10 @@ struct RenderOptions {
   float background[3] = {0, 0, 0};
   bool depth = false;           // also produce the alpha-weighted depth image
   bool validate_inputs = true;  // scan parameters for NaN/Inf (O(N)); a trusted caller may skip it
+  // Blend with the fixed-point tile kernel (gs/simd/qsplat.h: int16, bit-exact across ISAs for the
+  // same integer records; colours clamped to [0, 1]). Forward only: backward() and pose_normal_equations() need a float
+  // forward and refuse to follow this one.
+  bool fixed_point = false;
 };
 
 // Per-frame statistics of the last forward.

@@ -87,6 +87,22 @@ Image8 undistort(const Image8& src, const CameraPlan& plan) {
   return dst;
 }
 
+// The view's pinhole camera (downscaled to options.max_width) and pose.
+Status view_camera(const CameraPlan& plan, const DatasetOptions& options, const ColmapImage& im, DatasetView* view) {
+  PinholeIntrinsics& K = view->camera.intr;
+  double sx = 1, sy = 1;
+  K.width = plan.width, K.height = plan.height;
+  if (options.max_width > 0 && plan.width > options.max_width) {
+    K.width = options.max_width;
+    K.height = std::max(1, int(std::lround(double(plan.height) * options.max_width / plan.width)));
+    sx = double(K.width) / plan.width, sy = double(K.height) / plan.height;
+  }
+  K.fx = float(plan.fx * sx), K.cx = float(plan.cx * sx);
+  K.fy = float(plan.fy * sy), K.cy = float(plan.cy * sy);
+  view->camera.pose = pose_from_colmap(im.qvec, im.tvec);
+  return Status::Ok();
+}
+
 Expected<Dataset> load(const std::string& root, const DatasetOptions& options) {
   const std::string sparse_dir = detail::join_path(root, options.sparse_dir);
   const std::string images_dir = detail::join_path(root, options.images_dir);
@@ -126,6 +142,18 @@ Expected<Dataset> load(const std::string& root, const DatasetOptions& options) {
       }
       return io_error(path + ": image file not found (image " + std::to_string(im.id) + " of the COLMAP model)");
     }
+    const bool is_test = options.llffhold > 0 && i % size_t(options.llffhold) == 0;
+    const bool wanted = options.images == DatasetOptions::Images::kAll ||
+                        (options.images == DatasetOptions::Images::kTest) == is_test;
+    if (!wanted) {  // camera and pose only
+      DatasetView view;
+      view.name = im.name;
+      view.image_id = im.id;
+      view.is_test = is_test;
+      GS_RETURN_IF_ERROR(view_camera(plan, options, im, &view));
+      ds.views.push_back(std::move(view));
+      continue;
+    }
     auto img = read_image(path, 3);
     if (!img.ok()) return img.status();
     if (img->width != plan.width || img->height != plan.height)
@@ -137,20 +165,12 @@ Expected<Dataset> load(const std::string& root, const DatasetOptions& options) {
     view.name = im.name;
     view.image_id = im.id;
     view.image = plan.distorted() ? undistort(*img, plan) : std::move(*img);
-    PinholeIntrinsics& K = view.camera.intr;
-    double sx = 1, sy = 1;
-    K.width = plan.width, K.height = plan.height;
-    if (options.max_width > 0 && plan.width > options.max_width) {
-      K.width = options.max_width;
-      K.height = std::max(1, int(std::lround(double(plan.height) * options.max_width / plan.width)));
-      sx = double(K.width) / plan.width, sy = double(K.height) / plan.height;
-      view.image = resize_area(view.image, K.width, K.height);
+    GS_RETURN_IF_ERROR(view_camera(plan, options, im, &view));
+    if (view.camera.intr.width != plan.width) {
+      view.image = resize_area(view.image, view.camera.intr.width, view.camera.intr.height);
       if (view.image.empty()) return Status(StatusCode::kInternal, path + ": downscaling failed");
     }
-    K.fx = float(plan.fx * sx), K.cx = float(plan.cx * sx);
-    K.fy = float(plan.fy * sy), K.cy = float(plan.cy * sy);
-    view.camera.pose = pose_from_colmap(im.qvec, im.tvec);
-    view.is_test = options.llffhold > 0 && i % size_t(options.llffhold) == 0;
+    view.is_test = is_test;
     ds.views.push_back(std::move(view));
   }
 

@@ -73,12 +73,15 @@ struct Registrar::Impl {
   }
   uint64_t image_bytes() const { return uint64_t(max_w) * uint64_t(max_h) * (5 * 3 + 5) * 4; }
 
-  // The options of every forward render registration makes (the one place a renderer switch, e.g.
-  // a fixed-point rasteriser, is to be set for all of them).
-  static RenderOptions render_options(bool depth) {
+  // The options of the forward-only renders (keyframes, the render polish, the verdict's render):
+  // these may use the fixed-point rasteriser (RegisterOptions::fixed_point). The lm and adam
+  // solvers' renders (render()) stay float: they need the renderer's backward / forward-mode pose
+  // Jacobian, which the fixed-point path does not have.
+  RenderOptions render_options(bool depth) const {
     RenderOptions ro;
     ro.validate_inputs = false;  // decoded values are finite by construction
     ro.depth = depth;
+    ro.fixed_point = opt.fixed_point;
     return ro;
   }
 
@@ -115,7 +118,9 @@ struct Registrar::Impl {
 
   Status render(const Camera& cam) {
     const GaussianParams gp = gaussians();
-    return renderer.forward(cam, gp, render_options(false), rgb.data());
+    RenderOptions ro = render_options(false);
+    ro.fixed_point = false;  // followed by backward / pose_normal_equations (float only)
+    return renderer.forward(cam, gp, ro, rgb.data());
   }
 
   double rmse(const Camera& cam) const {
@@ -600,7 +605,7 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const model::HybridModel&
   const size_t cap = std::max(model.anchor_count, plan_anchor_rows);
   d.planned_rows = cap;
   Expected<RenderCapacity> rc = model::detail::plan_model_pipeline(model, cap, max_width, max_height, 1, 1, pool, d.kernels,
-                                                            &d.renderer, &d.backend, &d.ws);
+                                                            &d.renderer, &d.backend, &d.ws, /*training=*/false);
   if (!rc.ok()) return rc.status();
   d.allocate_images();
   d.bytes = Renderer::plan_bytes(*rc) + d.image_bytes() +

@@ -23,6 +23,7 @@ struct EvaluateRunOptions {
   int max_width = -1;           // -1: as trained
   int threads = 0;              // 0: all CPUs
   bool renders = false;         // also write <out>/<split>/<method>/renders/*.png
+  bool fixed_point = false;     // the on-device path: fixed-point blending (RenderOptions::fixed_point)
 };
 
 struct EvaluateRunSummary {

@@ -24,6 +24,7 @@ struct RegisterRunOptions {
   std::string dataset;  // "" : the one recorded in the run's run.json
   std::string solver = "keyframe";  // "keyframe", "lm" or "adam" (gs/pose/register.h)
   int downscale = 1;                // resolution divisor of the finest level (4: quarter resolution)
+  bool fixed_point = false;         // on-device mode: fixed-point keyframe renders (RegisterOptions::fixed_point)
   double time_budget_ms = 0;        // > 0: stop a view after this long, keeping the best pose
   int threads = 0;                  // 0: all CPUs
   std::string json;                 // "" or a file that also gets the JSON result

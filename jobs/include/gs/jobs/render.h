@@ -25,6 +25,7 @@ struct RenderRunOptions {
   std::string isa;            // dataset input: kernel table ("" : the best for this CPU)
   std::string split = "all";  // "all", "train" or "test"
   float background[3] = {0, 0, 0};  // dataset input: background colour in [0, 1]
+  bool fixed_point = false;   // model input: the on-device fixed-point blending (RenderOptions::fixed_point)
 };
 
 struct RenderedView {

@@ -26,7 +26,8 @@ inline constexpr const char* kPerViewJson = "per_view.json";
 inline constexpr const char* kPsnrCsv = "psnr_vs_time.csv";
 inline constexpr const char* kPsnrSvg = "psnr_vs_time.svg";
 
-// True for a .hbgs file or a folder holding run.json or model.hbgs (a training run).
+// True for a model file (.hbgs, .hbgc, or any file starting with a model magic: float or compact)
+// or a folder holding run.json or model.hbgs (a training run).
 bool is_model_input(const std::string& path);
 
 // The model file, dataset and image width limit behind a run folder or .hbgs file. dataset and

@@ -11,6 +11,8 @@
 #include "gs/simd/convert.h"
 #include "gs/simd/loss.h"
 #include "gs/simd/mlp.h"
+#include "gs/simd/qmlp.h"
+#include "gs/simd/qsplat.h"
 #include "gs/simd/splat.h"
 
 namespace gs::simd {
@@ -40,6 +42,9 @@ using YuyvToRgbFn = void (*)(int32_t width, int32_t height, const uint8_t* yuyv,
                              int32_t rgb_stride);
 using Nv12ToRgbFn = void (*)(int32_t width, int32_t height, const uint8_t* y, int32_t y_stride, const uint8_t* uv,
                              int32_t uv_stride, uint8_t* rgb, int32_t rgb_stride);
+using QRasterFwdTileFn = void (*)(const QRasterParams*, int32_t tile_x, int32_t tile_y, const QSplat* splats,
+                                  int32_t count, float* out_rgb, float* out_T, int32_t* out_last, float* out_depth);
+using QMlpFwdFn = void (*)(const QMlpParams*, int32_t batch, const int8_t* x, int8_t* hidden, int16_t* y);
 
 struct KernelTable {
   const char* isa;  // "ref", "sse2", "avx2", "avx512", "neon64", "neon"
@@ -55,6 +60,8 @@ struct KernelTable {
   AdamStepFn adam_step;  // one Adam update of n parameters (mlp.h)
   YuyvToRgbFn yuyv_to_rgb;  // camera frames to RGB24, bit-identical across tables (convert.h)
   Nv12ToRgbFn nv12_to_rgb;
+  QRasterFwdTileFn qraster_fwd_tile;  // fixed-point forward of one tile, bit-identical across tables (qsplat.h)
+  QMlpFwdFn qmlp_fwd;                 // int8 decoder MLP over a batch of rows, bit-identical across tables (qmlp.h)
 };
 
 // The reference table (always available).

@@ -83,6 +83,9 @@ struct DatasetOptions {
   std::string sparse_dir = "sparse/0";
   int max_width = 0;                  // > 0: downscale images (and intrinsics) to at most this width
   int llffhold = 8;                   // every llffhold-th image (sorted by name, index 0, 8, ...) is a test view; 0: none
+  // Which views' images are decoded: the others keep their camera and an empty image (memory
+  // follows the job: evaluating the test views does not hold the training images).
+  enum class Images { kAll, kTest, kTrain } images = Images::kAll;
 };
 
 // One view of a dataset: a pinhole camera (after undistortion and downscaling) and its image.

@@ -10,6 +10,7 @@
 
 #include "gs/io/colmap.h"
 #include "gs/model/hybrid_model.h"
+#include "gs/model/trainer.h"
 #include "gs/status.h"
 
 namespace gs::metrics { class LpipsAlex; }
@@ -35,6 +36,7 @@ struct EvalOptions {
   const metrics::LpipsAlex* lpips = nullptr;  // null: skip LPIPS
   std::string render_dir;                     // non-empty: write <dir>/<view stem>.png (atomic)
   bool psnr_only = false;                     // quick evaluation during training (no SSIM / LPIPS / PNG)
+  ModelRenderOptions render;                  // e.g. the fixed-point blending of the on-device path
 };
 
 // The render file of each view: <dir>/<image name with .png>, sub-folders kept. Refused with a

@@ -3,8 +3,9 @@
 // features, k offsets and 6 log-scales, optionally fused with image-based features, and the tiny
 // MLPs that decode neural Gaussians per view. Also its versioned binary file format.
 //
-// Memory: every per-anchor array is allocated once with capacity() rows (the hard anchor budget),
-// so growing anchors during training never reallocates; rows [0, anchor_count) are live.
+// Memory: every per-anchor array has capacity() rows, rows [0, anchor_count) live. capacity()
+// follows the scene: create_model allocates 1.25 x the initial anchors, the trainer grows the rows
+// (by half again, at densification steps only) up to the hard budget config.anchor_capacity().
 #pragma once
 
 #include <cstddef>
@@ -88,6 +89,9 @@ struct HybridModel {
 Expected<HybridModel> create_model(const ModelConfig& config, const float* xyz, size_t n, float scene_extent,
                                    uint64_t seed);
 
+// Shape of MLP `id` (MlpId) for a configuration: what every model file's MLP must match.
+simd::MlpShape model_mlp_shape(const ModelConfig& config, int id);
+
 // Model file: magic "HBGSMODL", format version, config, live rows, MLPs; little-endian; written
 // atomically. load_model refuses other versions, truncated or inconsistent files with a message.
 constexpr uint32_t kModelFileVersion = 1;
@@ -98,6 +102,8 @@ Expected<HybridModel> deserialize_model(const uint8_t* data, size_t size, const 
 // or MLPs: save_model and the trainer's checkpoint never write one, and loading refuses one.
 Status check_model_finite(const HybridModel& model, const std::string& source);
 Status save_model(const HybridModel& model, const std::string& path);
+// Reads a float model file or a compact one ("HBGSCMPT", gs/model/compact_model.h, dequantised),
+// told apart by the magic, not the extension.
 Expected<HybridModel> load_model(const std::string& path);
 
 }  // namespace gs::model

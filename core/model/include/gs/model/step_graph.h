@@ -74,31 +74,37 @@ struct StepWorkspace {
   NeuralGaussians<T> ng;
   size_t capacity = 0;
 
-  void reserve(size_t cap, int k, const simd::MlpShape shapes[kMlpCount], int G, int width, int height) {
+  // gradients = false: the forward buffers only (rendering and registration decode but never
+  // differentiate the decoder), about 40 % of the bytes.
+  void reserve(size_t cap, int k, const simd::MlpShape shapes[kMlpCount], int G, int width, int height,
+               bool gradients = true) {
     capacity = cap;
-    const size_t D = size_t(shapes[kMlpOpacity].in), N = cap * size_t(k);
+    const size_t D = size_t(shapes[kMlpOpacity].in), N = cap * size_t(k), gcap = gradients ? cap : 0, gN = gcap * size_t(k);
     rows.assign(cap, 0);
     if (G > 0) {
       raw.assign(cap * size_t(kImageRawDim), T(0));
       img_hidden.assign(cap * size_t(shapes[kMlpImage].hidden), T(0));
       g.assign(cap * size_t(G), T(0));
-      v_g.assign(cap * size_t(G), T(0));
+      v_g.assign(gcap * size_t(G), T(0));
     }
     X.assign(cap * D, T(0));
-    v_X.assign(cap * D, T(0));
-    v_x_tmp.assign(cap * D, T(0));
+    v_X.assign(gcap * D, T(0));
+    v_x_tmp.assign(gcap * D, T(0));
     for (int m = 0; m < 3; ++m) {
       hidden[m].assign(cap * size_t(shapes[m].hidden), T(0));
       y[m].assign(cap * size_t(shapes[m].out), T(0));
-      v_y[m].assign(cap * size_t(shapes[m].out), T(0));
+      v_y[m].assign(gcap * size_t(shapes[m].out), T(0));
     }
-    for (auto* v : {&means, &log_scales, &colors, &v_means, &v_log_scales, &v_colors, &v_ls_volume}) v->assign(N * 3, T(0));
-    for (auto* v : {&quats, &v_quats}) v->assign(N * 4, T(0));
-    for (auto* v : {&opacities, &v_opacities}) v->assign(N, T(0));
-    v_means2d.assign(N * 2, T(0));
+    for (auto* v : {&means, &log_scales, &colors}) v->assign(N * 3, T(0));
+    for (auto* v : {&v_means, &v_log_scales, &v_colors, &v_ls_volume}) v->assign(gN * 3, T(0));
+    quats.assign(N * 4, T(0));
+    v_quats.assign(gN * 4, T(0));
+    opacities.assign(N, T(0));
+    v_opacities.assign(gN, T(0));
+    v_means2d.assign(gN * 2, T(0));
     source.assign(N, 0);
     rgb.assign(size_t(width) * size_t(height) * 3, T(0));
-    v_rgb.assign(rgb.size(), T(0));
+    v_rgb.assign(gradients ? rgb.size() : 0, T(0));
     ng.means = means.data();
     ng.log_scales = log_scales.data();
     ng.quats = quats.data();

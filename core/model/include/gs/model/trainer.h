@@ -128,15 +128,26 @@ class Trainer {
 
 // Renders views of a trained model (no gradients): the step graph's forward in float. Allocates at
 // init() only.
+// How ModelRenderer renders: the float path (default), or the on-device fixed-point blending.
+struct ModelRenderOptions {
+  bool fixed_point_raster = false;  // RenderOptions::fixed_point: the int16 tile kernel (gs/simd/qsplat.h)
+};
+
 class ModelRenderer {
  public:
   ModelRenderer();
   ~ModelRenderer();
+  // Takes effect from the next render().
+  void set_options(const ModelRenderOptions& options);
   // Plans for the model's capacity and images up to max_width x max_height.
   Status init(const HybridModel& model, int max_width, int max_height, platform::ThreadPool* pool,
               const simd::KernelTable* kernels = nullptr);
   // rgb: [H, W, 3] floats (not clamped). gaussians: kept neural Gaussians of this view (optional).
   Status render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians = nullptr);
+  // Wall time of the last render's two stages, ms: decoding the anchors (MLPs) and the Gaussian
+  // renderer's forward (projection, binning, sorting, blending).
+  double last_decode_ms() const;
+  double last_forward_ms() const;
 
  private:
   struct Impl;

@@ -62,6 +62,10 @@ struct RegisterOptions {
   int max_iterations_per_level = 20;  // LM; Adam uses adam_iterations_per_level
   int adam_iterations_per_level = 100;
   double time_budget_ms = 0;     // > 0: stop (keeping the best pose) when exceeded
+  // On-device mode: the forward-only renders (keyframes, the render polish, the verdict's render:
+  // colour, depth, alpha) use the fixed-point blending (RenderOptions::fixed_point); the lm and
+  // adam solvers and the full-resolution renderer-Jacobian polish stay float (they need a backward).
+  bool fixed_point = false;
   float huber_delta = 0.1f;      // per-pixel residual norm beyond which the weight falls as 1/|r|
   // Stopping: a level ends when an accepted step moves less than these (rad; x scene extent) or the
   // cost falls by a relative amount below min_relative_decrease.
@@ -72,7 +76,7 @@ struct RegisterOptions {
   // an image of something else, or with no contrast at all, explains nothing), the model covers
   // at least min_coverage of the image (mean opacity of the render), and the pose moved at most
   // max_rotation_deg / max_translation (x scene extent) from the start.
-  double max_rmse = 0.15, min_explained = 0.5, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
+  double max_rmse = 0.15, min_explained = 0.55, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
 };
 
 enum class RegisterVerdict {

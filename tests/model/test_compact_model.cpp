@@ -1,0 +1,307 @@
+// SPDX-License-Identifier: MIT
+// The compact model file (gs/model/compact_model.h): half-precision conversion against an exact
+// nearest-value search, the rANS byte coder, quantisation error bounds of every field, pruning and
+// calibration on cameras, the file round trip, and refusal of corrupt, truncated or foreign files.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "gs/hash.h"
+#include "gs/model/compact_model.h"
+#include "gs/model/hybrid_model.h"
+#include "support/model_fixtures.h"
+#include "support/temp_dir.h"
+
+namespace gs::model {
+namespace {
+
+using test::sphere_points;
+
+// The value of a half bit pattern computed from its fields in double (the definition, not a cast).
+double half_value(uint16_t h) {
+  const int sign = h >> 15, e = (h >> 10) & 31, m = h & 1023;
+  double v = e == 0 ? std::ldexp(double(m), -24) : std::ldexp(1.0 + double(m) / 1024.0, e - 15);
+  if (e == 31) v = m ? std::numeric_limits<double>::quiet_NaN() : std::numeric_limits<double>::infinity();
+  return sign ? -v : v;
+}
+
+// Round to nearest even over every finite half: the half whose value is nearest to f (ties to the
+// even mantissa), infinity past the largest half + half an ulp (65520).
+uint16_t nearest_half(float f) {
+  const double x = std::fabs(double(f));
+  const uint16_t sign = std::signbit(f) ? 0x8000 : 0;
+  if (x >= 65520.0) return uint16_t(sign | 0x7c00);
+  uint16_t best = 0;
+  double best_d = x;
+  for (uint32_t h = 1; h < 0x7c00; ++h) {
+    const double d = std::fabs(half_value(uint16_t(h)) - x);
+    if (d < best_d || (d == best_d && (h & 1) == 0)) best = uint16_t(h), best_d = d;
+  }
+  return uint16_t(sign | best);
+}
+
+TEST_CASE("compact: half precision matches the exact nearest half and round-trips every half") {
+  for (uint32_t h = 0; h < 0x10000; ++h) {
+    const float f = half_to_float(uint16_t(h));
+    const double v = half_value(uint16_t(h));
+    if (std::isnan(v)) {
+      REQUIRE(std::isnan(f));
+      REQUIRE(std::isnan(half_to_float(float_to_half(f))));
+      continue;
+    }
+    REQUIRE(double(f) == v);
+    REQUIRE(float_to_half(f) == uint16_t(h));
+  }
+  // Midpoints between neighbouring halves (ties to even) and random floats of every magnitude.
+  std::mt19937 rng(7);
+  std::vector<float> probes = {0.0f, -0.0f, 65504.0f, 65519.99f, 65520.0f, 1e-8f, 2.98e-8f, 2.9802322e-8f, 6.1e-5f,
+                               std::numeric_limits<float>::denorm_min(), 1e30f, -1e30f};
+  for (uint32_t h = 0; h + 1 < 0x7c00; h += 37) probes.push_back(float((half_value(uint16_t(h)) + half_value(uint16_t(h + 1))) / 2));
+  std::uniform_real_distribution<float> e(-30.0f, 17.0f), s(-1.0f, 1.0f);
+  for (int i = 0; i < 3000; ++i) probes.push_back(s(rng) * std::exp2(e(rng)));
+  for (float f : probes) {
+    CAPTURE(f);
+    REQUIRE(float_to_half(f) == nearest_half(f));
+  }
+  CHECK(float_to_half(std::numeric_limits<float>::infinity()) == 0x7c00);
+  CHECK(std::isnan(half_to_float(float_to_half(std::numeric_limits<float>::quiet_NaN()))));
+}
+
+TEST_CASE("compact: rANS byte streams round-trip and malformed streams are refused") {
+  std::mt19937 rng(3);
+  std::vector<std::vector<uint8_t>> cases;
+  cases.push_back({});
+  cases.push_back({42});
+  cases.push_back(std::vector<uint8_t>(5000, 7));  // one symbol only
+  std::vector<uint8_t> uni(20000), skew(20000), two(777);
+  for (uint8_t& b : uni) b = uint8_t(rng());
+  std::geometric_distribution<int> geo(0.3);
+  for (uint8_t& b : skew) b = uint8_t(std::min(255, geo(rng)));
+  for (uint8_t& b : two) b = (rng() % 100) ? 0 : 255;
+  cases.push_back(uni);
+  cases.push_back(skew);
+  cases.push_back(two);
+  for (const std::vector<uint8_t>& c : cases) {
+    CAPTURE(c.size());
+    std::vector<uint8_t> enc = {0xAB};  // a prefix: streams sit inside a file
+    detail::rans_encode_bytes(c.data(), c.size(), &enc);
+    std::vector<uint8_t> dec(c.size(), 0);
+    size_t pos = 1;
+    std::string err;
+    REQUIRE_MESSAGE(detail::rans_decode_bytes(enc.data(), enc.size(), &pos, c.size(), dec.data(), &err), err);
+    CHECK(pos == enc.size());
+    CHECK(dec == c);
+    // Truncated: refused with a message, never a read past the end.
+    for (size_t cut = 1; cut < enc.size(); cut += std::max<size_t>(1, enc.size() / 50)) {
+      pos = 1;
+      err.clear();
+      CHECK_FALSE(detail::rans_decode_bytes(enc.data(), cut, &pos, c.size(), dec.data(), &err));
+      CHECK_FALSE(err.empty());
+    }
+  }
+  // A skewed stream codes to well under a byte per symbol (the point of coding it).
+  std::vector<uint8_t> enc;
+  detail::rans_encode_bytes(skew.data(), skew.size(), &enc);
+  CHECK(enc.size() < skew.size() / 2);
+}
+
+ModelConfig small_config(ImageFeatureMode mode) {
+  ModelConfig c;
+  c.k = 4;
+  c.feature_dim = 8;
+  c.hidden = 12;
+  c.image_features = mode;
+  c.image_feature_dim = 5;
+  c.image_feature_hidden = 7;
+  c.max_anchors = 400;
+  c.max_gaussians = 1600;
+  return c;
+}
+
+// A model with random rows and MLPs scaled so that some Gaussians are kept in every view.
+HybridModel random_model(ImageFeatureMode mode, uint64_t seed) {
+  const std::vector<float> xyz = sphere_points(3000, uint32_t(seed));
+  Expected<HybridModel> m = create_model(small_config(mode), xyz.data(), 3000, 3.0f, seed);
+  REQUIRE_MESSAGE(m.ok(), m.status().to_string());
+  HybridModel model = std::move(*m);
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  const size_t M = model.anchor_count;
+  for (size_t i = 0; i < M * size_t(model.config.k) * 3; ++i) model.offsets[i] = 0.3f * model.voxel_size * g(rng);
+  for (size_t i = 0; i < M * 6; ++i) model.log_scales[i] = -3.0f + 0.5f * g(rng);
+  for (size_t i = 0; i < M * size_t(model.config.feature_dim); ++i) model.features[i] = g(rng);
+  for (size_t r = 0; r < M && mode == ImageFeatureMode::kPaper; ++r) {
+    for (int ch = 0; ch + 1 < kImageRawDim; ++ch) model.image_raw[r * kImageRawDim + size_t(ch)] = 0.5f + 0.2f * g(rng);
+    model.image_raw[r * kImageRawDim + kImageRawDim - 1] = (r % 5) ? 1.0f : 0.0f;  // the valid flag
+    if (!(r % 5)) std::fill_n(&model.image_raw[r * kImageRawDim], kImageRawDim, 0.0f);
+  }
+  return model;
+}
+
+std::vector<Camera> ring_cameras(int n) {
+  std::vector<Camera> cams;
+  for (int i = 0; i < n; ++i) {
+    const double a = 2 * M_PI * i / n;
+    const double C[3] = {6 * std::cos(a), 0.5, 6 * std::sin(a)}, at[3] = {0, 0, 0};
+    cams.push_back(test::look_at(C, at, PinholeIntrinsics{60, 60, 32, 24, 64, 48}));
+  }
+  return cams;
+}
+
+TEST_CASE("compact: every field is within its quantisation step of the float model") {
+  for (ImageFeatureMode mode : {ImageFeatureMode::kPaper, ImageFeatureMode::kNone}) {
+    CAPTURE(int(mode));
+    const HybridModel m = random_model(mode, 11);
+    CompactOptions opt;
+    opt.prune = false;
+    CompactStats st;
+    Expected<CompactModel> cm = compact_from_model(m, {}, opt, nullptr, &st);
+    REQUIRE_MESSAGE(cm.ok(), cm.status().to_string());
+    REQUIRE(cm->anchor_count == m.anchor_count);
+    REQUIRE(st.source_rows.size() == m.anchor_count);
+    const HybridModel d = dequantize(*cm);
+    const size_t K = size_t(m.config.k), F = size_t(m.config.feature_dim);
+    const double pos_step = double(m.voxel_size) / double(1 << opt.residual_bits);
+    std::vector<float> feat_absmax(F, 0.0f);
+    for (size_t r = 0; r < m.anchor_count; ++r)
+      for (size_t c = 0; c < F; ++c) feat_absmax[c] = std::max(feat_absmax[c], std::fabs(m.features[r * F + c]));
+    for (size_t r = 0; r < m.anchor_count; ++r) {
+      const size_t s = st.source_rows[r];  // rows are reordered (sorted on the grid)
+      for (int a = 0; a < 3; ++a)
+        REQUIRE(std::fabs(double(d.positions[3 * r + size_t(a)]) - double(m.positions[3 * s + size_t(a)])) <= 0.5 * pos_step * 1.001 + 1e-6);
+      float off_max = 0;
+      for (size_t i = 0; i < 3 * K; ++i) off_max = std::max(off_max, std::fabs(m.offsets[3 * K * s + i]));
+      for (size_t i = 0; i < 3 * K; ++i)  // one step of an fp16 scale of max/127, which can round up by 2^-11
+        REQUIRE(std::fabs(d.offsets[3 * K * r + i] - m.offsets[3 * K * s + i]) <= 0.5f * off_max / 127.0f * 1.002f + 1e-7f);
+      for (size_t i = 0; i < 6; ++i)
+        REQUIRE(std::fabs(d.log_scales[6 * r + i] - m.log_scales[6 * s + i]) <= std::fabs(m.log_scales[6 * s + i]) * 0x1p-11f);
+      for (size_t c = 0; c < F; ++c)
+        REQUIRE(std::fabs(d.features[F * r + c] - m.features[F * s + c]) <= 0.5f * feat_absmax[c] / 127.0f * 1.0001f);
+      if (mode == ImageFeatureMode::kPaper) {
+        const bool valid = m.image_raw[s * kImageRawDim + kImageRawDim - 1] >= 0.5f;
+        for (int ch = 0; ch < kImageRawDim; ++ch) {
+          const float want = m.image_raw[s * kImageRawDim + size_t(ch)], got = d.image_raw[r * kImageRawDim + size_t(ch)];
+          if (!valid) REQUIRE(got == 0.0f);  // an unseen anchor stays exactly all zero
+          else REQUIRE(std::fabs(got - want) <= 0.5f * (cm->image_hi[ch] - cm->image_lo[ch]) / 255.0f * 1.001f + 1e-6f);
+        }
+      }
+    }
+    // MLP weights: per output row, half a step of max|row| / 127; biases exact.
+    for (int id = 0; id < kMlpCount; ++id) {
+      if (m.mlps[id].params.empty()) continue;
+      CAPTURE(id);
+      const simd::MlpShape& sh = m.mlps[id].shape;
+      const float* a = m.mlps[id].params.data();
+      const float* b = d.mlps[id].params.data();
+      REQUIRE(d.mlps[id].params.size() == m.mlps[id].params.size());
+      auto check_rows = [&](size_t off, size_t rows, size_t cols) {
+        for (size_t r = 0; r < rows; ++r) {
+          float mx = 0;
+          for (size_t c = 0; c < cols; ++c) mx = std::max(mx, std::fabs(a[off + r * cols + c]));
+          for (size_t c = 0; c < cols; ++c) REQUIRE(std::fabs(a[off + r * cols + c] - b[off + r * cols + c]) <= 0.5f * mx / 127.0f * 1.0001f);
+        }
+      };
+      check_rows(0, size_t(sh.hidden), size_t(sh.in));
+      check_rows(Mlp::off_W2(sh), size_t(sh.out), size_t(sh.hidden));
+      for (size_t i = Mlp::off_b1(sh); i < Mlp::off_b1(sh) + size_t(sh.hidden); ++i) REQUIRE(a[i] == b[i]);
+      for (size_t i = Mlp::off_b2(sh); i < Mlp::off_b2(sh) + size_t(sh.out); ++i) REQUIRE(a[i] == b[i]);
+    }
+  }
+}
+
+TEST_CASE("compact: pruning drops anchors no camera sees; calibration measures every MLP") {
+  HybridModel m = random_model(ImageFeatureMode::kPaper, 5);
+  // Move a tenth of the anchors far below the cameras' ring, where no camera looks.
+  size_t moved = 0;
+  for (size_t r = 0; r < m.anchor_count; r += 10, ++moved) m.positions[3 * r + 1] = 500.0f + float(r);
+  CompactStats st;
+  Expected<CompactModel> cm = compact_from_model(m, ring_cameras(8), CompactOptions{}, nullptr, &st);
+  REQUIRE_MESSAGE(cm.ok(), cm.status().to_string());
+  CHECK(st.views == 8);
+  CHECK(st.never_visible >= moved);
+  CHECK(st.anchors_out <= m.anchor_count - moved);
+  CHECK(st.anchors_out > m.anchor_count / 3);
+  for (size_t s : st.source_rows) REQUIRE(m.positions[3 * s + 1] < 100.0f);
+  CHECK(cm->calibration_views == 8);
+  for (int id = 0; id < kMlpCount; ++id) {
+    CAPTURE(id);
+    const ActivationRanges& r = cm->mlps[id].ranges;
+    REQUIRE(r.in_absmax.size() == size_t(cm->mlps[id].shape.in));
+    CHECK(*std::max_element(r.in_absmax.begin(), r.in_absmax.end()) > 0);
+    CHECK(*std::max_element(r.hidden_max.begin(), r.hidden_max.end()) > 0);
+    CHECK(*std::max_element(r.out_absmax.begin(), r.out_absmax.end()) > 0);
+    CHECK(r.input_scale() > 0);
+  }
+}
+
+TEST_CASE("compact: the file round-trips and load_model reads it as the dequantised model") {
+  for (ImageFeatureMode mode : {ImageFeatureMode::kPaper, ImageFeatureMode::kNone}) {
+    CAPTURE(int(mode));
+    const HybridModel m = random_model(mode, 21);
+    Expected<CompactModel> cm = compact_from_model(m, ring_cameras(6), CompactOptions{}, nullptr);
+    REQUIRE_MESSAGE(cm.ok(), cm.status().to_string());
+    const std::vector<uint8_t> bytes = serialize_compact(*cm);
+    CHECK(is_compact_file(bytes.data(), bytes.size()));
+    Expected<CompactModel> back = deserialize_compact(bytes.data(), bytes.size(), "mem");
+    REQUIRE_MESSAGE(back.ok(), back.status().to_string());
+    CHECK(serialize_compact(*back) == bytes);  // every field survives (the writer is deterministic)
+    test::TempDir dir;
+    const std::string path = dir.path() + "/m.hbgc";
+    REQUIRE(save_compact(*cm, path).ok());
+    Expected<HybridModel> loaded = load_model(path);
+    REQUIRE_MESSAGE(loaded.ok(), loaded.status().to_string());
+    const HybridModel d = dequantize(*cm);
+    REQUIRE(loaded->anchor_count == d.anchor_count);
+    CHECK(loaded->positions == d.positions);
+    CHECK(loaded->offsets == d.offsets);
+    CHECK(loaded->features == d.features);
+    CHECK(loaded->log_scales == d.log_scales);
+    CHECK(loaded->image_raw == d.image_raw);
+    for (int id = 0; id < kMlpCount; ++id) CHECK(loaded->mlps[id].params == d.mlps[id].params);
+  }
+}
+
+TEST_CASE("compact: corrupt, truncated, foreign and future files are refused with a message") {
+  const HybridModel m = random_model(ImageFeatureMode::kPaper, 31);
+  Expected<CompactModel> cm = compact_from_model(m, ring_cameras(4), CompactOptions{}, nullptr);
+  REQUIRE(cm.ok());
+  const std::vector<uint8_t> good = serialize_compact(*cm);
+  // Truncation at every length: an error naming the source, never a crash.
+  for (size_t n = 0; n < good.size(); n += (n < 64 ? 1 : 7)) {
+    Expected<CompactModel> r = deserialize_compact(good.data(), n, "cut.hbgc");
+    REQUIRE_FALSE(r.ok());
+    REQUIRE(r.status().message().find("cut.hbgc") != std::string::npos);
+  }
+  // One flipped byte anywhere: the checksum catches it.
+  for (size_t i = 0; i < good.size(); i += 13) {
+    std::vector<uint8_t> bad = good;
+    bad[i] ^= 0x5a;
+    Expected<CompactModel> r = deserialize_compact(bad.data(), bad.size(), "flip.hbgc");
+    REQUIRE_FALSE(r.ok());
+  }
+  // A later format version (checksum made valid): refused by version, with the remedy.
+  std::vector<uint8_t> future = good;
+  future[8] = 2;
+  const uint64_t sum = fnv1a64(future.data(), future.size() - 8);
+  std::memcpy(future.data() + future.size() - 8, &sum, 8);  // little-endian hosts (all hbgs targets)
+  Expected<CompactModel> r = deserialize_compact(future.data(), future.size(), "future.hbgc");
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().message().find("version 2") != std::string::npos);
+  // A float model file is not a compact one, and the other way round.
+  const std::vector<uint8_t> float_bytes = serialize_model(m);
+  CHECK_FALSE(is_compact_file(float_bytes.data(), float_bytes.size()));
+  r = deserialize_compact(float_bytes.data(), float_bytes.size(), "float.hbgs");
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().message().find("not an hbgs compact model file") != std::string::npos);
+  CHECK_FALSE(deserialize_model(good.data(), good.size(), "c.hbgc").ok());
+}
+
+}  // namespace
+}  // namespace gs::model
