@@ -130,6 +130,10 @@ int run(int argc, char** argv) {
   double min_decrease = -1;
   int render_polish = -1, polish_downscale = 0;
   bool fixed_point = false;
+  double huber = -1;
+  int polish_level = 0;
+  app.add_option("--polish-level", polish_level, "image level divisor of the render polish (0: the finest)");
+  app.add_option("--huber", huber, "Huber delta of the residual norm (-1: default)");
   app.add_flag("--fixed-point", fixed_point, "forward-only renders with the fixed-point rasteriser (RegisterOptions::fixed_point)");
   app.add_option("--polish-downscale", polish_downscale, "render polish divisor (0: finest/4)");
   app.add_option("--render-polish", render_polish, "anti-aliased render LM steps at the end below full resolution (-1: default)");
@@ -280,6 +284,8 @@ int run(int argc, char** argv) {
     o.keyframe_downscale = keyframe_downscale;
     o.polish_downscale = polish_downscale;
     o.fixed_point = fixed_point;
+    if (huber > 0) o.huber_delta = float(huber);
+    o.polish_level_downscale = polish_level;
     if (polish >= 0) o.polish_iterations = polish;
     if (render_polish >= 0) o.render_polish_iterations = render_polish;
     if (min_decrease >= 0) o.min_relative_decrease = min_decrease;

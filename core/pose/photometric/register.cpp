@@ -658,13 +658,17 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
   bool timed_out = false;
   if (o.solver == RegisterOptions::kKeyframe) {
     GS_RETURN_IF_ERROR(d.keyframe_alignment(&current, rgb, coarsest, finest, &out->iterations, &out->levels, deadline));
-    // Polish against the renderer itself (occlusion and view-dependent colour) at the finest level.
+    // Polish against the renderer itself (occlusion and view-dependent colour): below full
+    // resolution against the anti-aliased render (render_polish), at full resolution with the
+    // renderer's forward-mode Jacobian (a direct render below full resolution aliases sub-pixel
+    // Gaussians, which would bias it).
     Camera level = scaled_camera(current, finest);
     io::box_downsample_rgb(rgb, intr.width, intr.height, finest, d.target.data());
-    // (Only at full resolution: below it the direct render aliases sub-pixel Gaussians, which
-    // would bias the polish; the keyframes are anti-aliased.)
-    if (finest > 1 && o.render_polish_iterations > 0 && !(deadline > 0 && platform::now_seconds() > deadline))
-      GS_RETURN_IF_ERROR(d.render_polish(&current, rgb, finest, &out->iterations, deadline));
+    if (finest > 1 && o.render_polish_iterations > 0 && !(deadline > 0 && platform::now_seconds() > deadline)) {
+      const int pl = o.polish_level_downscale > 0 && finest % o.polish_level_downscale == 0 ? o.polish_level_downscale : finest;
+      GS_RETURN_IF_ERROR(d.render_polish(&current, rgb, pl, &out->iterations, deadline));
+      if (pl != finest) d.polish_render_valid = false;  // the verdict renders at the finest level itself
+    }
     if (finest == 1 && d.decode(current) > 0 && o.polish_iterations > 0 && !(deadline > 0 && platform::now_seconds() > deadline)) {
       RegisterOptions saved = d.opt;
       d.opt.max_iterations_per_level = o.polish_iterations;

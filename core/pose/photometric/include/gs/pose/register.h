@@ -46,6 +46,9 @@ struct RegisterOptions {
   // (rendered at keyframe_downscale, box-filtered to the finest level; Jacobian from its gradient
   // and depth), one render per trial.
   int render_polish_iterations = 3;
+  // The image level of the render polish (0: the finest level; e.g. 2 with finest_downscale 4 to end
+  // on the half-resolution image: the render costs the same, the image has 4x the pixels).
+  int polish_level_downscale = 0;
   // kKeyframe: at the coarsest level of the first keyframe, start the alignment from this many
   // rotations about the camera centre (the start, then pan/tilt offsets of candidate_angle_deg on a
   // 3x3 grid) and keep the one that ends with the lowest cost: a wider basin for the price of a few
