@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include <sys/resource.h>
+
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
@@ -51,6 +53,14 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+// Process CPU time (all threads), ms: with the machine shared, CPU ms / threads is the wall time a
+// free machine would show (when the work parallelises), which a loaded machine's wall time is not.
+double cpu_ms() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return 1e3 * (double(u.ru_utime.tv_sec) + double(u.ru_stime.tv_sec)) + 1e-3 * (double(u.ru_utime.tv_usec) + double(u.ru_stime.tv_usec));
+}
+
 double mean(const std::vector<double>& v) {
   double s = 0;
   for (double x : v) s += x;
@@ -76,17 +86,19 @@ struct Row {  // one view under one setting and start error
   size_t setting = 0;
   double init_deg = 0, init_frac = 0;
   std::string view;
-  double rot = 0, frac = 0, ms = 0;
+  double rot = 0, frac = 0, ms = 0, cpu = 0;
   bool success = false, converged = false;
   std::string verdict;
   int iterations = 0;
+  double initial_rmse = 0, final_rmse = 0, explained = 0, coverage = 0;
 };
 
 struct Aggregate {
   size_t setting = 0;
   double init_deg = 0, init_frac = 0;
   size_t views = 0;
-  double rot_median = 0, frac_median = 0, success_rate = 0, converged_rate = 0, ms_median = 0, ms_mean = 0,
+  double rot_median = 0, frac_median = 0, success_rate = 0, converged_rate = 0, agreement_rate = 0, cpu_median = 0,
+         ms_median = 0, ms_mean = 0,
          iterations_median = 0;
 };
 
@@ -114,6 +126,22 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--seed", seed, "pose-noise seed (and the training seed)")->capture_default_str();
   app.add_option("--threads", threads, "worker threads (0: all CPUs)")->capture_default_str();
+  int keyframes = 0, keyframe_iterations = 0, keyframe_downscale = 0, polish = -1;
+  double min_decrease = -1;
+  int render_polish = -1, polish_downscale = 0;
+  bool fixed_point = false;
+  double huber = -1;
+  int polish_level = 0;
+  app.add_option("--polish-level", polish_level, "image level divisor of the render polish (0: the finest)");
+  app.add_option("--huber", huber, "Huber delta of the residual norm (-1: default)");
+  app.add_flag("--fixed-point", fixed_point, "forward-only renders with the fixed-point rasteriser (RegisterOptions::fixed_point)");
+  app.add_option("--polish-downscale", polish_downscale, "render polish divisor (0: finest/4)");
+  app.add_option("--render-polish", render_polish, "anti-aliased render LM steps at the end below full resolution (-1: default)");
+  app.add_option("--keyframes", keyframes, "keyframe solver: keyframes (0: the budget's)");
+  app.add_option("--keyframe-iterations", keyframe_iterations, "keyframe solver: LM steps per level (0: the budget's)");
+  app.add_option("--keyframe-downscale", keyframe_downscale, "keyframe render divisor (0: finest/2)");
+  app.add_option("--polish", polish, "renderer LM polish steps at the finest level (-1: default)");
+  app.add_option("--min-decrease", min_decrease, "relative cost decrease that ends a level (-1: default)");
   app.add_option("--out", out_dir, "folder for the CSV files and SVG plots");
   app.add_option("--json", json_path, "write the summary as JSON to this file");
   CLI11_PARSE(app, argc, argv);
@@ -251,6 +279,16 @@ int run(int argc, char** argv) {
     o.adam_iterations_per_level = s.adam_iterations;
     o.keyframe_iterations = s.keyframe_iterations;
     o.keyframes = s.keyframes;
+    if (keyframes > 0) o.keyframes = keyframes;
+    if (keyframe_iterations > 0) o.keyframe_iterations = keyframe_iterations;
+    o.keyframe_downscale = keyframe_downscale;
+    o.polish_downscale = polish_downscale;
+    o.fixed_point = fixed_point;
+    if (huber > 0) o.huber_delta = float(huber);
+    o.polish_level_downscale = polish_level;
+    if (polish >= 0) o.polish_iterations = polish;
+    if (render_polish >= 0) o.render_polish_iterations = render_polish;
+    if (min_decrease >= 0) o.min_relative_decrease = min_decrease;
     for (double deg : inits) {
       pose::PoseNoise noise;
       noise.kind = pose::PoseNoise::kFixed;
@@ -261,30 +299,37 @@ int run(int argc, char** argv) {
       pose::perturb_poses(noise, centre, radius, start.data(), start.size());
       Aggregate ag;
       ag.setting = si, ag.init_deg = deg, ag.init_frac = noise.translation_frac, ag.views = test_views.size();
-      std::vector<double> rot, frac, ms, its;
-      size_t ok = 0, conv = 0;
+      std::vector<double> rot, frac, ms, its, cpu;
+      size_t ok = 0, conv = 0, agree = 0;
       for (size_t k = 0; k < test_views.size(); ++k) {
         const io::DatasetView& v = *test_views[k];
         const size_t i = test_index[k];
         pose::RegisterResult res;
+        const double cpu0 = cpu_ms();
         if (Status st = r.register_view(v.image.pixels.data(), v.camera.intr, start[i], &res); !st.ok())
           die(v.name + ": " + st.to_string());
+        const double cpu1 = cpu_ms();
         Row row;
         row.setting = si, row.init_deg = deg, row.init_frac = noise.translation_frac, row.view = v.name;
         row.rot = pose::rotation_error_deg(res.pose, truth[i]);
         row.frac = centre_distance(res.pose, truth[i]) / radius;
         row.ms = res.milliseconds;
+        row.cpu = cpu1 - cpu0;
         row.success = row.rot < 1.0 && row.frac < 0.01;
         row.converged = res.converged();
         row.verdict = pose::verdict_name(res.verdict);
         row.iterations = res.iterations;
+        row.initial_rmse = res.initial_rmse, row.final_rmse = res.final_rmse;
+        row.explained = res.explained, row.coverage = res.coverage;
         rot.push_back(row.rot), frac.push_back(row.frac), ms.push_back(row.ms), its.push_back(row.iterations);
-        ok += row.success, conv += row.converged;
+        ok += row.success, conv += row.converged, agree += row.success == row.converged;
+        cpu.push_back(row.cpu);
         rows.push_back(row);
       }
       ag.rot_median = median(rot), ag.frac_median = median(frac), ag.ms_median = median(ms), ag.ms_mean = mean(ms);
       ag.iterations_median = median(its);
       ag.success_rate = double(ok) / double(ag.views), ag.converged_rate = double(conv) / double(ag.views);
+      ag.agreement_rate = double(agree) / double(ag.views), ag.cpu_median = median(cpu);
       std::fprintf(stderr, "bench_register: %s/%s from %g deg: median %.3f deg, success %.0f%%, median %.0f ms\n",
                    s.solver.c_str(), s.budget.c_str(), deg, ag.rot_median, 100 * ag.success_rate, ag.ms_median);
       aggs.push_back(ag);
@@ -302,31 +347,37 @@ int run(int argc, char** argv) {
                                                   : model_path.c_str());
   std::printf("  CPU %s, %s, load %.2f, %d threads; sweep %.1f s\n", mi.cpu_model.c_str(), format_mhz(mi).c_str(),
               load_average(), pool.num_threads(), sweep_seconds);
-  std::printf("  %-6s %-8s %8s %8s | %12s %14s %8s %9s %9s %8s %6s\n", "solver", "budget", "init deg", "init r",
-              "med rot deg", "med trans r", "success", "converged", "med ms", "mean ms", "iters");
+  // (agree: the verdict is `converged` exactly when the view succeeded; cpu/thr: median process CPU
+  // ms per view over the threads, the wall time of a free machine when the work parallelises.)
+  std::printf("  %-6s %-8s %8s %8s | %12s %12s %8s %9s %7s %9s %8s %9s %6s\n", "solver", "budget", "init deg", "init r",
+              "med rot deg", "med trans %r", "success", "converged", "agree", "med ms", "mean ms", "cpu/thr", "iters");
   for (const Aggregate& a : aggs) {
     const Setting& s = settings[a.setting];
-    std::printf("  %-6s %-8s %8g %8g | %12.4f %14.5f %7.0f%% %8.0f%% %9.1f %8.1f %6.0f\n", s.solver.c_str(),
-                s.budget.c_str(), a.init_deg, a.init_frac, a.rot_median, a.frac_median, 100 * a.success_rate,
-                100 * a.converged_rate, a.ms_median, a.ms_mean, a.iterations_median);
+    std::printf("  %-6s %-8s %8g %8g | %12.4f %12.3f %7.0f%% %8.0f%% %6.0f%% %9.1f %8.1f %9.1f %6.0f\n", s.solver.c_str(),
+                s.budget.c_str(), a.init_deg, a.init_frac, a.rot_median, 100 * a.frac_median, 100 * a.success_rate,
+                100 * a.converged_rate, 100 * a.agreement_rate, a.ms_median, a.ms_mean,
+                a.cpu_median / double(pool.num_threads()), a.iterations_median);
   }
 
   // Files.
   if (!out_dir.empty()) {
     if (Status st = platform::make_dirs(out_dir); !st.ok()) die(st.to_string());
-    std::string csv = "solver,budget,init_deg,init_frac,view,final_rot_deg,final_trans_frac,success,verdict,ms,iterations\n";
+    std::string csv = "solver,budget,init_deg,init_frac,view,final_rot_deg,final_trans_frac,success,verdict,ms,iterations,initial_rmse,final_rmse,explained,coverage,cpu_ms\n";
     for (const Row& x : rows)
       csv += settings[x.setting].solver + "," + settings[x.setting].budget + "," + f("%g", x.init_deg) + "," +
              f("%g", x.init_frac) + "," + x.view + "," + f("%.6g", x.rot) + "," + f("%.6g", x.frac) + "," +
-             (x.success ? "1" : "0") + "," + x.verdict + "," + f("%.2f", x.ms) + "," + std::to_string(x.iterations) + "\n";
+             (x.success ? "1" : "0") + "," + x.verdict + "," + f("%.2f", x.ms) + "," + std::to_string(x.iterations) + "," +
+             f("%.5g", x.initial_rmse) + "," + f("%.5g", x.final_rmse) + "," + f("%.5g", x.explained) + "," +
+             f("%.5g", x.coverage) + "," + f("%.2f", x.cpu) + "\n";
     std::string agg_csv =
         "solver,budget,init_deg,init_frac,views,median_final_rot_deg,median_final_trans_frac,success_rate,"
-        "converged_rate,median_ms,mean_ms,median_iterations\n";
+        "converged_rate,median_ms,mean_ms,median_iterations,agreement_rate,median_cpu_ms\n";
     for (const Aggregate& a : aggs)
       agg_csv += settings[a.setting].solver + "," + settings[a.setting].budget + "," + f("%g", a.init_deg) + "," +
                  f("%g", a.init_frac) + "," + std::to_string(a.views) + "," + f("%.6g", a.rot_median) + "," +
                  f("%.6g", a.frac_median) + "," + f("%.4f", a.success_rate) + "," + f("%.4f", a.converged_rate) + "," +
-                 f("%.2f", a.ms_median) + "," + f("%.2f", a.ms_mean) + "," + f("%g", a.iterations_median) + "\n";
+                 f("%.2f", a.ms_median) + "," + f("%.2f", a.ms_mean) + "," + f("%g", a.iterations_median) + "," +
+                 f("%.4f", a.agreement_rate) + "," + f("%.2f", a.cpu_median) + "\n";
 
     const std::string where = fs::path(dataset).filename().string() + ", " + std::to_string(test_views.size()) +
                               " test views, 1/" + std::to_string(downscale) + " resolution";
@@ -380,6 +431,8 @@ int run(int argc, char** argv) {
                     {"median_final_trans_frac", a.frac_median},
                     {"success_rate", a.success_rate},
                     {"converged_rate", a.converged_rate},
+                    {"verdict_agreement_rate", a.agreement_rate},
+                    {"median_cpu_ms", a.cpu_median},
                     {"median_ms", a.ms_median},
                     {"mean_ms", a.ms_mean},
                     {"median_iterations", a.iterations_median}});
@@ -394,6 +447,7 @@ int run(int argc, char** argv) {
                         {"anchors", model.anchor_count},
                         {"scene_radius", radius},
                         {"seed", seed},
+                        {"fixed_point", fixed_point},
                         {"threads", pool.num_threads()},
                         {"success_definition", "rotation < 1 deg and translation < 0.01 scene radius"},
                         {"sweep_seconds", sweep_seconds},

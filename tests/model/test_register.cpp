@@ -178,6 +178,24 @@ TEST_CASE("register: the registration loop allocates nothing after set-up") {
   }
 }
 
+TEST_CASE("register: quarter-resolution registration (keyframes, render polish, verdict) allocates nothing") {
+  const Fixture& f = fixture();
+  platform::ThreadPool pool(2);
+  for (bool fixed_point : {false, true}) {
+    pose::RegisterOptions opt;
+    opt.finest_downscale = 4;
+    opt.fixed_point = fixed_point;
+    auto reg = pose::Registrar::create(f.model, kW, kH, opt, &pool);
+    REQUIRE(reg.ok());
+    pose::RegisterResult r;
+    REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(4, 0.03, 11), &r).ok());  // warm-up
+    test::AllocationScope scope;
+    REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(6, 0.04, 12), &r).ok());
+    CHECK(scope.count() == 0);
+    CHECK(r.iterations > 0);
+  }
+}
+
 // The on-device mode: fixed-point keyframe renders (RegisterOptions::fixed_point), the same
 // allocation-free loop, and a pose as good as the float one's on this scene.
 TEST_CASE("register: the fixed-point mode allocates nothing after set-up and recovers the pose") {
@@ -260,6 +278,42 @@ TEST_CASE("register: hard cases give a verdict not garbage") {
     PinholeIntrinsics big = f.truth.intr;
     big.width = kW * 2;
     CHECK((*reg)->register_view(f.image.data(), big, f.truth.pose, &r).code() == StatusCode::kCapacityExceeded);
+  }
+}
+
+// The verdict against the truth on the generated scene at quarter resolution (the on-device
+// setting): a start that registers within 1 degree and 1 % of the distance is `converged`; the same
+// image started from a pose looking at another side of the object (a clearly wrong basin) is not,
+// whatever pose it ends at that is more than 1 degree off.
+TEST_CASE("register: the verdict at quarter resolution agrees with the pose error") {
+  const Fixture& f = fixture();
+  platform::ThreadPool pool(2);
+  pose::RegisterOptions opt;
+  opt.finest_downscale = 2;  // 48x36 at the end from a 96x72 image (a quarter would be 24x18)
+  auto reg = pose::Registrar::create(f.model, kW, kH, opt, &pool);
+  REQUIRE(reg.ok());
+  SUBCASE("a good start converges and says so") {
+    pose::RegisterResult r;
+    REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(5, 0.05, 2), &r).ok());
+    const double rot = pose::rotation_error_deg(r.pose, f.truth.pose), tr = f.centre_error(r.pose) / 6.0;
+    MESSAGE("good start: " << std::string(pose::verdict_name(r.verdict)) << ", " << rot << " deg, " << 100 * tr
+                           << " %, RMSE " << r.final_rmse << ", explained " << r.explained);
+    CHECK(rot < 1.0);
+    CHECK(tr < 0.01);
+    CHECK(r.converged());
+  }
+  SUBCASE("a start 60 degrees round the object is not reported converged") {
+    // Orbit the camera 60 degrees about the object's centre (the view shows another side).
+    const double a = 60 * M_PI / 180, C[3] = {0.3 * std::cos(a) + 6.0 * std::sin(a), -0.4, 0.3 * std::sin(a) - 6.0 * std::cos(a)};
+    const double at[3] = {0, 0, 0};
+    const Camera start = test::look_at(C, at, f.truth.intr);
+    pose::RegisterResult r;
+    REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, start.pose, &r).ok());
+    const double rot = pose::rotation_error_deg(r.pose, f.truth.pose);
+    MESSAGE("wrong start: " << std::string(pose::verdict_name(r.verdict)) << ", " << rot << " deg, RMSE " << r.final_rmse
+                            << ", explained " << r.explained);
+    REQUIRE(rot > 1.0);  // the premise: it did not find the truth from there
+    CHECK(!r.converged());
   }
 }
 

@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "pose_solve.h"
 #include "../../model/float_backend.h"
@@ -57,7 +58,8 @@ struct Registrar::Impl {
   std::vector<float> target, rgb, v_rgb;  // [H, W, 3] of the current level
   // kKeyframe: the keyframe at the finest level (colour, alpha-weighted depth, alpha) and its
   // box-filtered level copies, and the target at the level.
-  std::vector<float> key_rgb, key_depth, key_alpha, lvl_rgb, lvl_depth, lvl_alpha;
+  std::vector<float> key_rgb, key_depth, key_alpha, lvl_rgb, lvl_depth, lvl_alpha, fin_alpha;
+  bool polish_render_valid = false;  // rgb / fin_alpha hold the polish's render at the pose it returned
   int max_w = 0, max_h = 0;
   size_t planned_rows = 0;
   uint64_t bytes = 0;
@@ -67,12 +69,46 @@ struct Registrar::Impl {
   void allocate_images() {
     const size_t px = size_t(max_w) * size_t(max_h) * 3, npx = size_t(max_w) * size_t(max_h);
     for (auto* v : {&target, &rgb, &v_rgb, &key_rgb, &lvl_rgb}) v->assign(px, 0.0f);
-    for (auto* v : {&key_depth, &key_alpha, &lvl_depth, &lvl_alpha}) v->assign(npx, 0.0f);
+    for (auto* v : {&key_depth, &key_alpha, &lvl_depth, &lvl_alpha, &fin_alpha}) v->assign(npx, 0.0f);
   }
-  uint64_t image_bytes() const { return uint64_t(max_w) * uint64_t(max_h) * (5 * 3 + 4) * 4; }
+  uint64_t image_bytes() const { return uint64_t(max_w) * uint64_t(max_h) * (5 * 3 + 5) * 4; }
+
+  // The options of the forward-only renders (keyframes, the render polish, the verdict's render):
+  // these may use the fixed-point rasteriser (RegisterOptions::fixed_point). The lm and adam
+  // solvers' renders (render()) stay float: they need the renderer's backward / forward-mode pose
+  // Jacobian, which the fixed-point path does not have.
+  RenderOptions render_options(bool depth) const {
+    RenderOptions ro;
+    ro.validate_inputs = false;  // decoded values are finite by construction
+    ro.depth = depth;
+    ro.fixed_point = opt.fixed_point;
+    return ro;
+  }
 
   // Decodes the model's Gaussians for a pose (colours for its view direction).
+  // The camera of the last decode and its count (a decode costs as much as a render here: the
+  // decoders run for every anchor in view), so a repeated decode at the same pose is skipped.
+  Camera decoded_cam{};
+  size_t decoded_n = 0;
+  bool decoded_valid = false;
+  // The pose and divisor of the render held in key_rgb / key_depth / key_alpha (with depth).
+  Camera key_cam{};
+  bool key_valid = false;
+
+  static bool same_camera(const Camera& a, const Camera& b) {
+    return std::memcmp(&a.pose, &b.pose, sizeof(Pose)) == 0 && a.intr.fx == b.intr.fx && a.intr.fy == b.intr.fy &&
+           a.intr.cx == b.intr.cx && a.intr.cy == b.intr.cy && a.intr.width == b.intr.width && a.intr.height == b.intr.height;
+  }
+
   size_t decode(const Camera& cam) {
+    if (decoded_valid && same_camera(cam, decoded_cam)) return decoded_n;
+    decoded_cam = cam;
+    decoded_valid = true;
+    decoded_n = decode_uncached(cam);
+    return decoded_n;
+  }
+
+  size_t decode_uncached(const Camera& cam) {
     size_t V = 0;
     return model::decode_view(backend, model::detail::model_params(*model), decode_camera(cam), ws, &V);
   }
@@ -82,8 +118,8 @@ struct Registrar::Impl {
 
   Status render(const Camera& cam) {
     const GaussianParams gp = gaussians();
-    RenderOptions ro;
-    ro.validate_inputs = false;  // decoded values are finite by construction
+    RenderOptions ro = render_options(false);
+    ro.fixed_point = false;  // followed by backward / pose_normal_equations (float only)
     return renderer.forward(cam, gp, ro, rgb.data());
   }
 
@@ -111,6 +147,51 @@ struct Registrar::Impl {
     const float* T = renderer.final_transmittance();
     double c = 0;
     for (size_t i = 0; i < n; ++i) c += 1.0 - double(T[i]);
+    return c / double(n);
+  }
+
+  // The divisor keyframes are rendered at before being box-filtered down to the levels (no level
+  // sees the aliasing of sub-pixel Gaussians); the polish's remaining bias is what the keyframes'
+  // would be, so they can be coarser.
+  int keyframe_scale(int finest) const {
+    const int k = opt.keyframe_downscale > 0 ? opt.keyframe_downscale : std::max(1, finest / 2);
+    return finest % k == 0 ? k : 1;
+  }
+  // The divisor of the render polish and of the verdict's render: at 1/4 a render at 1/2 (box-
+  // filtered) still left 0.1-0.5 degree biases on the test scenes, at full 0.01-0.1.
+  int polish_scale(int finest) const {
+    const int k = opt.polish_downscale > 0 ? opt.polish_downscale : std::max(1, finest / 4);
+    return finest % k == 0 ? k : 1;
+  }
+
+  // Anti-aliased render at the finest level: rendered at keyframe_scale(finest) and box-filtered
+  // into rgb (and the opacity into lvl_alpha), so the verdict's residual measures the pose, not the
+  // aliasing of a direct low-resolution render. Decodes the model for the pose; the count of
+  // decoded Gaussians is returned in *decoded.
+  Status render_antialiased(const Camera& full, int finest, size_t* decoded) {
+    const int ks = polish_scale(finest);
+    const Camera kc = scaled_camera(full, ks);
+    *decoded = decode(full);
+    if (*decoded == 0) return Status::Ok();
+    if (!(key_valid && same_camera(kc, key_cam))) {
+      const GaussianParams gp = gaussians();
+      GS_RETURN_IF_ERROR(renderer.forward(kc, gp, render_options(true), key_rgb.data(), key_depth.data()));
+      const size_t n = size_t(kc.intr.width) * size_t(kc.intr.height);
+      const float* T = renderer.final_transmittance();
+      for (size_t i = 0; i < n; ++i) key_alpha[i] = 1.0f - T[i];
+      key_cam = kc;
+      key_valid = true;
+    }
+    const int f = finest / ks;
+    box_down(key_rgb.data(), kc.intr.width, kc.intr.height, 3, f, rgb.data());
+    box_down(key_alpha.data(), kc.intr.width, kc.intr.height, 1, f, lvl_alpha.data());
+    return Status::Ok();
+  }
+
+  double level_coverage(const Camera& cam) const {
+    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
+    double c = 0;
+    for (size_t i = 0; i < n; ++i) c += double(lvl_alpha[i]);
     return c / double(n);
   }
 
@@ -180,12 +261,11 @@ struct Registrar::Impl {
   Status render_keyframe(const Camera& full, int finest) {
     const Camera cam = scaled_camera(full, finest);
     decode(full);
+    if (key_valid && same_camera(cam, key_cam)) return Status::Ok();
+    key_cam = cam;
+    key_valid = true;
     const GaussianParams gp = gaussians();
-    RenderOptions ro;
-    ro.validate_inputs = false;
-    ro.depth = true;
-    ro.fixed_point = opt.fixed_point;  // keyframes only: the LM polish needs a float forward
-    GS_RETURN_IF_ERROR(renderer.forward(cam, gp, ro, key_rgb.data(), key_depth.data()));
+    GS_RETURN_IF_ERROR(renderer.forward(cam, gp, render_options(true), key_rgb.data(), key_depth.data()));
     const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
     const float* T = renderer.final_transmittance();
     for (size_t i = 0; i < n; ++i) key_alpha[i] = 1.0f - T[i];
@@ -297,12 +377,129 @@ struct Registrar::Impl {
     *rel = best;
   }
 
+  // Renders the pose at the keyframe divisor with depth and box-filters colour, depth and opacity
+  // to the finest level (lvl_*); the Gaussians of the last decode are used.
+  Status render_level_from_key(const Camera& full, int finest) {
+    const int ks = polish_scale(finest);
+    const Camera kc = scaled_camera(full, ks);
+    const GaussianParams gp = gaussians();
+    key_valid = false;  // rendered with the Gaussians of the polish's decode, not full's own
+    GS_RETURN_IF_ERROR(renderer.forward(kc, gp, render_options(true), key_rgb.data(), key_depth.data()));
+    const size_t n = size_t(kc.intr.width) * size_t(kc.intr.height);
+    const float* T = renderer.final_transmittance();
+    for (size_t i = 0; i < n; ++i) key_alpha[i] = 1.0f - T[i];
+    const int f = finest / ks;
+    box_down(key_rgb.data(), kc.intr.width, kc.intr.height, 3, f, lvl_rgb.data());
+    box_down(key_depth.data(), kc.intr.width, kc.intr.height, 1, f, lvl_depth.data());
+    box_down(key_alpha.data(), kc.intr.width, kc.intr.height, 1, f, lvl_alpha.data());
+    return Status::Ok();
+  }
+
+  // Mean Huber cost of the anti-aliased render (lvl_rgb) against the level target over the pixels
+  // the model covers (opacity > 0.5), and the Gauss-Newton normal equations with the Jacobian of
+  // the render taken from its own image gradient (central differences) and depth:
+  // render_new(p) ~ render(p - dp), dp = d(u, v)/dxi xi, so dr/dxi = -grad(render) . dp/dxi.
+  double render_cost(const PinholeIntrinsics& in, detail::Mat6* A, detail::Vec6* b) const {
+    const double delta = opt.huber_delta;
+    if (A) A->setZero(), b->setZero();
+    double total = 0;
+    size_t used = 0;
+    const int w = in.width, h = in.height;
+    for (int y = 1; y + 1 < h; ++y)
+      for (int x = 1; x + 1 < w; ++x) {
+        const size_t pix = size_t(y) * size_t(w) + size_t(x);
+        const double alpha = lvl_alpha[pix];
+        if (!(alpha > 0.5)) continue;
+        const double z = lvl_depth[pix] / alpha;
+        if (!(z > 1e-3)) continue;
+        ++used;
+        double r[3];
+        for (int k = 0; k < 3; ++k) r[k] = double(lvl_rgb[3 * pix + size_t(k)]) - double(target[3 * pix + size_t(k)]);
+        const double rn = std::sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+        total += detail::huber_cost(rn, delta);
+        if (!A) continue;
+        const double m[3] = {z * ((x + 0.5) - in.cx) / in.fx, z * ((y + 0.5) - in.cy) / in.fy, z};
+        double du[6], dv[6];
+        detail::projection_twist_jacobian(m, in.fx, in.fy, du, dv);
+        const double wgt = detail::huber_weight(rn, delta);
+        for (int k = 0; k < 3; ++k) {
+          const double gx = 0.5 * (double(lvl_rgb[3 * (pix + 1) + size_t(k)]) - double(lvl_rgb[3 * (pix - 1) + size_t(k)]));
+          const double gy = 0.5 * (double(lvl_rgb[3 * (pix + size_t(w)) + size_t(k)]) - double(lvl_rgb[3 * (pix - size_t(w)) + size_t(k)]));
+          double J[6];
+          for (int j = 0; j < 6; ++j) J[j] = -(gx * du[j] + gy * dv[j]);
+          for (int i = 0; i < 6; ++i) {
+            (*b)(i) += wgt * J[i] * r[k];
+            for (int j = i; j < 6; ++j) (*A)(i, j) += wgt * J[i] * J[j];
+          }
+        }
+      }
+    if (A)
+      for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < i; ++j) (*A)(i, j) = (*A)(j, i);
+    return used ? total / double(used) : INFINITY;
+  }
+
+  // Keeps the polish's render at the accepted pose (rgb, fin_alpha): the verdict's render then costs
+  // nothing (its Gaussians were decoded at the polish's start pose, at most 0.6 degrees away).
+  void keep_polish_render(const PinholeIntrinsics& in) {
+    const size_t n = size_t(in.width) * size_t(in.height);
+    std::copy(lvl_rgb.begin(), lvl_rgb.begin() + std::ptrdiff_t(3 * n), rgb.begin());
+    std::copy(lvl_alpha.begin(), lvl_alpha.begin() + std::ptrdiff_t(n), fin_alpha.begin());
+    polish_render_valid = true;
+  }
+
+  // The end of kKeyframe below full resolution: Levenberg-Marquardt against the anti-aliased render
+  // itself at the finest level (each trial re-renders at the keyframe divisor). Its fixed point is
+  // where the render's residual has no component along the Jacobian, which the keyframe warp's is
+  // not (depth blended across edges at the level, pixels warping out of the image): on the test
+  // scenes the warp's minimum sat 0.1-1 degree from the true pose at 1/4.
+  Status render_polish(Camera* full, const uint8_t* image, int finest, int* iterations, double deadline) {
+    const PinholeIntrinsics in = scaled_camera(*full, finest).intr;
+    io::box_downsample_rgb(image, full->intr.width, full->intr.height, finest, target.data());
+    if (decode(*full) == 0) return Status::Ok();
+    GS_RETURN_IF_ERROR(render_level_from_key(*full, finest));
+    detail::Mat6 A;
+    detail::Vec6 b;
+    double c = render_cost(in, &A, &b);
+    if (!std::isfinite(c)) return Status::Ok();
+    keep_polish_render(in);
+    double lambda = 1e-3;
+    for (int it = 0; it < opt.render_polish_iterations; ++it) {
+      if (deadline > 0 && platform::now_seconds() > deadline) break;
+      bool accepted = false;
+      for (int attempt = 0; attempt < 4 && !accepted; ++attempt) {
+        double xi[6];
+        detail::damped_step(A, b, lambda, 0.01, 0.01 * extent, xi);
+        Camera trial = *full;
+        pose::apply_left_twist(xi, &trial.pose);
+        GS_RETURN_IF_ERROR(render_level_from_key(trial, finest));
+        detail::Mat6 At;
+        detail::Vec6 bt;
+        const double ct = render_cost(in, &At, &bt);
+        ++*iterations;
+        if (ct < c) {
+          const double decrease = (c - ct) / std::max(c, 1e-30);
+          full->pose = trial.pose;
+          c = ct, A = At, b = bt;
+          keep_polish_render(in);
+          lambda = std::max(lambda / 3, 1e-7);
+          accepted = true;
+          if (step_small(xi) || decrease < opt.min_relative_decrease) return Status::Ok();
+        } else {
+          lambda *= 4;
+        }
+      }
+      if (!accepted) break;
+    }
+    return Status::Ok();
+  }
+
   // kKeyframe: keyframes at the current pose, each aligned coarse to fine; returns the new pose.
   Status keyframe_alignment(Camera* full, const uint8_t* image, int coarsest, int finest, int* iterations, int* levels,
                             double deadline) {
     // The keyframe is rendered at twice the finest level's resolution (when the image has it) and
     // box-filtered down, so that no level sees the aliasing of sub-pixel Gaussians.
-    const int key_scale = std::max(1, finest / 2);
+    const int key_scale = keyframe_scale(finest);
     const Camera kcam = scaled_camera(*full, key_scale);
     const int kw = kcam.intr.width, kh = kcam.intr.height;
     for (int k = 0; k < opt.keyframes; ++k) {
@@ -432,6 +629,7 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
   if (Status st = validate_camera(full); !st.ok()) return invalid_argument("registration: start pose or camera: " + st.message());
   const RegisterOptions& o = d.opt;
   const double t0 = platform::now_seconds();
+  d.decoded_valid = d.key_valid = d.polish_render_valid = false;  // the model may have changed since the last call
   const double deadline = o.time_budget_ms > 0 ? t0 + 1e-3 * o.time_budget_ms : 0.0;
   *out = RegisterResult();
   out->pose = init;
@@ -447,23 +645,30 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
   // The start: the finest level's residual, and whether the model is visible at all.
   Camera cam = scaled_camera(full, finest);
   io::box_downsample_rgb(rgb, intr.width, intr.height, finest, d.target.data());
-  if (d.decode(full) == 0) {
+  size_t decoded = 0;
+  GS_RETURN_IF_ERROR(d.render_antialiased(full, finest, &decoded));
+  if (decoded == 0) {
     out->verdict = RegisterVerdict::kNothingVisible;
     out->milliseconds = 1e3 * (platform::now_seconds() - t0);
     return Status::Ok();
   }
-  GS_RETURN_IF_ERROR(d.render(cam));
   out->initial_rmse = d.rmse(cam);
 
   Camera current = full;
   bool timed_out = false;
   if (o.solver == RegisterOptions::kKeyframe) {
     GS_RETURN_IF_ERROR(d.keyframe_alignment(&current, rgb, coarsest, finest, &out->iterations, &out->levels, deadline));
-    // Polish against the renderer itself (occlusion and view-dependent colour) at the finest level.
+    // Polish against the renderer itself (occlusion and view-dependent colour): below full
+    // resolution against the anti-aliased render (render_polish), at full resolution with the
+    // renderer's forward-mode Jacobian (a direct render below full resolution aliases sub-pixel
+    // Gaussians, which would bias it).
     Camera level = scaled_camera(current, finest);
     io::box_downsample_rgb(rgb, intr.width, intr.height, finest, d.target.data());
-    // (Only at full resolution: below it the direct render aliases sub-pixel Gaussians, which
-    // would bias the polish; the keyframes are anti-aliased.)
+    if (finest > 1 && o.render_polish_iterations > 0 && !(deadline > 0 && platform::now_seconds() > deadline)) {
+      const int pl = o.polish_level_downscale > 0 && finest % o.polish_level_downscale == 0 ? o.polish_level_downscale : finest;
+      GS_RETURN_IF_ERROR(d.render_polish(&current, rgb, pl, &out->iterations, deadline));
+      if (pl != finest) d.polish_render_valid = false;  // the verdict renders at the finest level itself
+    }
     if (finest == 1 && d.decode(current) > 0 && o.polish_iterations > 0 && !(deadline > 0 && platform::now_seconds() > deadline)) {
       RegisterOptions saved = d.opt;
       d.opt.max_iterations_per_level = o.polish_iterations;
@@ -494,20 +699,25 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
   // start pose is kept if it fits better.
   cam = scaled_camera(current, finest);
   io::box_downsample_rgb(rgb, intr.width, intr.height, finest, d.target.data());
-  const size_t n_final = d.decode(current);
+  size_t n_final = 0;
   double final_rmse = INFINITY, cover = 0;
-  if (n_final > 0) {
-    GS_RETURN_IF_ERROR(d.render(cam));
+  if (d.polish_render_valid) {
     final_rmse = d.rmse(cam);
-    cover = d.coverage(cam);
+    std::copy(d.fin_alpha.begin(), d.fin_alpha.end(), d.lvl_alpha.begin());
+    cover = d.level_coverage(cam);
+  } else {
+    GS_RETURN_IF_ERROR(d.render_antialiased(current, finest, &n_final));
+    if (n_final > 0) {
+      final_rmse = d.rmse(cam);
+      cover = d.level_coverage(cam);
+    }
   }
   if (!(final_rmse <= out->initial_rmse)) {
     current.pose = init;
     cam = scaled_camera(current, finest);
-    d.decode(current);
-    GS_RETURN_IF_ERROR(d.render(cam));
+    GS_RETURN_IF_ERROR(d.render_antialiased(current, finest, &n_final));
     final_rmse = d.rmse(cam);
-    cover = d.coverage(cam);
+    cover = d.level_coverage(cam);
   }
   out->pose = current.pose;
   out->final_rmse = final_rmse;

@@ -39,9 +39,16 @@ namespace gs::pose {
 
 struct RegisterOptions {
   enum Solver { kKeyframe, kGaussNewton, kAdam } solver = kKeyframe;
-  int keyframes = 3;             // kKeyframe: renders (outer rounds) before the polish
+  int keyframes = 2;             // kKeyframe: renders (outer rounds) before the polish
   int keyframe_iterations = 15;  // kKeyframe: LM steps per pyramid level per keyframe
-  int polish_iterations = 3;     // kKeyframe: renderer LM steps at the finest level at the end
+  int polish_iterations = 3;     // kKeyframe: renderer LM steps at the finest level at the end (full resolution)
+  // kKeyframe below full resolution: LM steps at the end against the anti-aliased render itself
+  // (rendered at keyframe_downscale, box-filtered to the finest level; Jacobian from its gradient
+  // and depth), one render per trial.
+  int render_polish_iterations = 3;
+  // The image level of the render polish (0: the finest level; e.g. 2 with finest_downscale 4 to end
+  // on the half-resolution image: the render costs the same, the image has 4x the pixels).
+  int polish_level_downscale = 0;
   // kKeyframe: at the coarsest level of the first keyframe, start the alignment from this many
   // rotations about the camera centre (the start, then pan/tilt offsets of candidate_angle_deg on a
   // 3x3 grid) and keep the one that ends with the lowest cost: a wider basin for the price of a few
@@ -49,13 +56,18 @@ struct RegisterOptions {
   int coarse_candidates = 9;
   double candidate_angle_deg = 8.0;
   int finest_downscale = 1;      // resolution divisor of the last level (1: full, 4: quarter)
+  // kKeyframe: resolution divisor at which keyframes are rendered before being box-filtered down to
+  // the levels (0: max(1, finest_downscale / 2)), and the one of the render polish and the
+  // verdict's render (0: max(1, finest_downscale / 4)). Each must divide finest_downscale (else 1).
+  int keyframe_downscale = 0, polish_downscale = 0;
   int min_coarse_width = 12;     // the coarsest level is the largest halving at least this wide, px
   int max_levels = 6;            // at most this many levels
   int max_iterations_per_level = 20;  // LM; Adam uses adam_iterations_per_level
   int adam_iterations_per_level = 100;
   double time_budget_ms = 0;     // > 0: stop (keeping the best pose) when exceeded
-  // On-device mode: the keyframe renders (colour, depth, alpha) use the fixed-point blending
-  // (RenderOptions::fixed_point); the renderer-Jacobian polish stays float (it needs a backward).
+  // On-device mode: the forward-only renders (keyframes, the render polish, the verdict's render:
+  // colour, depth, alpha) use the fixed-point blending (RenderOptions::fixed_point); the lm and
+  // adam solvers and the full-resolution renderer-Jacobian polish stay float (they need a backward).
   bool fixed_point = false;
   float huber_delta = 0.1f;      // per-pixel residual norm beyond which the weight falls as 1/|r|
   // Stopping: a level ends when an accepted step moves less than these (rad; x scene extent) or the
@@ -67,7 +79,7 @@ struct RegisterOptions {
   // an image of something else, or with no contrast at all, explains nothing), the model covers
   // at least min_coverage of the image (mean opacity of the render), and the pose moved at most
   // max_rotation_deg / max_translation (x scene extent) from the start.
-  double max_rmse = 0.2, min_explained = 0.55, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
+  double max_rmse = 0.15, min_explained = 0.55, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
 };
 
 enum class RegisterVerdict {
