@@ -93,7 +93,11 @@ struct DatasetView {
   std::string name;
   uint32_t image_id = 0;
   Camera camera;
-  Image8 image;  // RGB, camera.intr.width x camera.intr.height
+  Image8 image;  // RGB, camera.intr.width x camera.intr.height, as stored (not composited)
+  // Coverage of the subject, 1 channel, same size as image (255: the subject, 0: background), from
+  // the image's alpha channel or a file in masks/; empty when the dataset has none. Training and
+  // evaluation compare renders with image * mask + background * (1 - mask).
+  Image8 mask;
   bool is_test = false;
 };
 
