@@ -50,6 +50,10 @@ Command add_eval_command(CLI::App& parent) {
   sub->add_option("--lpips-weights", o->lpips_weights, "LPIPS-Alex weights folder (default: ../shared/data/lpips_alex if present)");
   sub->add_option("--threads", o->threads, "Worker threads (0: all CPUs)")->capture_default_str()->check(CLI::Range(0, 4096));
   sub->add_flag("--renders", o->renders, "Also write the renders to <out>/<split>/<method>/renders/");
+  sub->add_option("--background", o->background,
+                  "Background to render on and composite masked views on: black, white or r,g,b (default: the run's "
+                  "training background)")
+      ->check(background_validator());
   sub->add_flag("--fixed-point", o->fixed_point, "Render with the on-device fixed-point blending (int16 tile kernel)");
   sub->add_flag("-q,--quiet", args->quiet, "Only the summary");
   return {sub, [args] { return run_eval(*args); }};

@@ -136,6 +136,10 @@ Command add_register_command(CLI::App& parent) {
   sub->add_option("--downscale", o->downscale, "Resolution divisor of the finest level (4: quarter resolution)")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
+  sub->add_option("--background", o->background,
+                  "Colour behind the model; masked views and RGBA images are composited on it: black, white or r,g,b "
+                  "(default: the run's training background)")
+      ->check(background_validator());
   sub->add_flag("--fixed-point", o->fixed_point, "On-device mode: fixed-point keyframe renders (int16 blending)");
   sub->add_option("--solver", o->solver, "keyframe (direct alignment to rendered keyframes, then LM polish), lm (Levenberg-Marquardt with the renderer's analytic pose Jacobian at every level) or adam")
       ->capture_default_str()

@@ -17,7 +17,6 @@ namespace {
 struct RenderArgs {
   gs::jobs::RenderRunOptions options;
   int max_width = 0;  // --max-width as given (options.max_width is -1 when it is not)
-  std::string background = "0,0,0";
   bool quiet = false;
 };
 
@@ -31,8 +30,6 @@ std::string psnr_text(double psnr, int decimals) {
 
 int run_render(RenderArgs& args) {
   const gs::jobs::RenderRunOptions& a = args.options;
-  if (gs::Status st = gs::jobs::parse_background(args.background, args.options.background); !st.ok())
-    return fail("render", st.message());
   auto progress = [&](const gs::jobs::RenderedView& v, size_t k, size_t n) {
     if (!args.quiet) std::fprintf(stderr, "[%zu/%zu] %s %.1f ms PSNR %s\n", k, n, v.png.c_str(), v.ms, psnr_text(v.psnr, 1).c_str());
   };
@@ -79,15 +76,10 @@ Command add_render_command(CLI::App& parent) {
   sub->add_option("--split", o->split, "Views to render (test: every 8th by name, as in 3DGS)")
       ->capture_default_str()
       ->check(CLI::IsMember({"all", "train", "test"}));
-  sub->add_option("--background", args->background, "Background colour r,g,b in [0, 1]")
-      ->capture_default_str()
-      ->check(CLI::Validator(
-          [](std::string& s) {
-            float rgb[3];
-            const gs::Status st = gs::jobs::parse_background(s, rgb);
-            return st.ok() ? std::string() : st.message();
-          },
-          "R,G,B"));
+  sub->add_option("--background", o->background,
+                  "Background: black, white or r,g,b in [0, 1] (default: black for a dataset, the run's training "
+                  "background for a model)")
+      ->check(background_validator());
   sub->add_flag("--fixed-point", o->fixed_point, "Blend with the on-device fixed-point kernel (int16; colours clamped to [0, 1])");
   sub->add_flag("-q,--quiet", args->quiet, "No per-view progress lines");
   return {sub, [args, max_width] {

@@ -133,6 +133,11 @@ Command add_train_command(CLI::App& parent) {
   sub->add_option("--image-features", o->image_features, "Image-based anchor features (none: plain Scaffold-GS)")
       ->capture_default_str()
       ->check(CLI::IsMember({"paper", "none"}));
+  sub->add_option("--background", o->background,
+                  "Colour behind the Gaussians; masked views (alpha or masks/) are composited on it: black, white, "
+                  "random (a colour per iteration, evaluated on black) or r,g,b in [0, 1]")
+      ->capture_default_str()
+      ->check(background_validator());
   sub->add_option("--max-anchors", o->max_anchors, "Hard budget on anchors")->capture_default_str()->check(CLI::Range(size_t(1), size_t(1) << 32));
   sub->add_option("--max-gaussians", o->max_gaussians, "Hard budget on neural Gaussians per view")
       ->capture_default_str()

@@ -12,6 +12,7 @@
 #include <CLI/CLI.hpp>
 
 #include "gs/jobs/train.h"
+#include "gs/model/background.h"
 #include "gs/platform/clock.h"
 #include "gs/stats.h"
 
@@ -54,6 +55,16 @@ inline int fail(const char* cmd, const std::string& message) {
   std::fflush(stdout);
   std::fprintf(stderr, "hbgs %s: error: %s\n", cmd, message.c_str());
   return kExitRuntime;
+}
+
+// Checks a --background value (black, white, random, r,g,b) at parse time.
+inline CLI::Validator background_validator() {
+  return CLI::Validator(
+      [](std::string& s) {
+        gs::Expected<gs::model::Background> b = gs::model::parse_background(s);
+        return b.ok() ? std::string() : b.status().message();
+      },
+      "black|white|random|R,G,B");
 }
 
 // Wall-clock stopwatch on the platform's monotonic clock.

@@ -12,6 +12,7 @@
 #include <map>
 #include <memory>
 
+#include "gs/io/composite.h"
 #include "gs/io/image.h"
 #include "gs/metrics/image_metrics.h"
 #include "gs/metrics/lpips.h"
@@ -29,6 +30,39 @@ double mean(const std::vector<ViewMetrics>& views, double ViewMetrics::*field) {
   double sum = 0;
   for (const ViewMetrics& v : views) sum += v.*field;
   return sum / double(views.size());
+}
+
+// Mean over the views that have the metric (masked views; >= 0), -1 when none has it.
+double mean_of_masked(const std::vector<ViewMetrics>& views, double ViewMetrics::*field) {
+  double sum = 0;
+  int n = 0;
+  for (const ViewMetrics& v : views)
+    if (v.*field >= 0) sum += v.*field, ++n;
+  return n ? sum / n : -1.0;
+}
+
+// PSNR inside the mask (8-bit render and ground truth, squared errors weighted by coverage), and
+// the render's alpha against the mask (mean absolute difference; IoU of both thresholded at 0.5).
+void mask_metrics(const uint8_t* render, const uint8_t* gt, const uint8_t* mask, const float* alpha, int w, int h,
+                  ViewMetrics* m) {
+  const size_t n = size_t(w) * size_t(h);
+  double se = 0, weight = 0, abs_diff = 0;
+  size_t both = 0, either = 0;
+  for (size_t p = 0; p < n; ++p) {
+    const double cover = mask[p] / 255.0;
+    for (int c = 0; c < 3; ++c) {
+      const double e = (double(render[3 * p + size_t(c)]) - double(gt[3 * p + size_t(c)])) / 255.0;
+      se += cover * e * e;
+    }
+    weight += 3 * cover;
+    abs_diff += std::fabs(double(alpha[p]) - cover);
+    const bool in_mask = mask[p] >= 128, in_render = alpha[p] >= 0.5f;
+    both += in_mask && in_render;
+    either += in_mask || in_render;
+  }
+  m->psnr_masked = weight > 0 ? (se > 0 ? -10.0 * std::log10(se / weight) : 99.0) : -1.0;
+  m->alpha_mae = abs_diff / double(n);
+  m->alpha_iou = either ? double(both) / double(either) : 1.0;
 }
 
 // Shortest text that reads back as the same double; JSON has no Inf/NaN, so those become null.
@@ -85,6 +119,8 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
     if (v->image.width != w || v->image.height != h || v->image.channels != 3)
       return invalid_argument("evaluation: view " + v->name + ": its image is not a " + std::to_string(w) + "x" +
                               std::to_string(h) + " RGB image");
+    if (!v->mask.empty() && (v->mask.width != w || v->mask.height != h || v->mask.channels != 1))
+      return invalid_argument("evaluation: view " + v->name + ": its mask is not one channel of the image's size");
     max_w = std::max(max_w, w);
     max_h = std::max(max_h, h);
   }
@@ -106,7 +142,7 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
   ModelRenderer renderer;
   GS_RETURN_IF_ERROR(renderer.set_options(options.render));
   GS_RETURN_IF_ERROR(renderer.init(model, max_w, max_h, pool));
-  std::vector<float> rgb(size_t(max_w) * size_t(max_h) * 3);
+  std::vector<float> rgb(size_t(max_w) * size_t(max_h) * 3), alpha(size_t(max_w) * size_t(max_h));
   EvalResult result;
   result.views.reserve(views.size());
   std::vector<double> render_ms;
@@ -114,13 +150,15 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
     ViewMetrics m;
     m.name = v->name;
     const double t0 = platform::now_seconds();
-    GS_RETURN_IF_ERROR(renderer.render(model, v->camera, rgb.data(), &m.gaussians));
+    GS_RETURN_IF_ERROR(renderer.render(model, v->camera, rgb.data(), &m.gaussians, alpha.data()));
     m.render_ms = 1e3 * (platform::now_seconds() - t0);
     render_ms.push_back(m.render_ms);
     const int w = v->camera.intr.width, h = v->camera.intr.height;
     const io::Image8 img = io::image_from_float_rgb(rgb.data(), w, h);  // clamps to [0, 1], rounds
-    const uint8_t* gt = v->image.pixels.data();
+    const io::Image8 composited = io::composite_rgb8(v->image, v->mask, options.render.background);
+    const uint8_t* gt = composited.pixels.data();
     m.psnr = metrics::psnr_u8(img.pixels.data(), gt, w, h);
+    if (!v->mask.empty()) mask_metrics(img.pixels.data(), gt, v->mask.pixels.data(), alpha.data(), w, h, &m);
     if (full) {
       m.ssim = metrics::ssim_u8(img.pixels.data(), gt, w, h);
       if (lpips) {
@@ -140,6 +178,9 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
   result.psnr = mean(result.views, &ViewMetrics::psnr);
   result.ssim = mean(result.views, &ViewMetrics::ssim);
   result.lpips = full && lpips ? mean(result.views, &ViewMetrics::lpips) : -1.0;
+  result.psnr_masked = mean_of_masked(result.views, &ViewMetrics::psnr_masked);
+  result.alpha_mae = mean_of_masked(result.views, &ViewMetrics::alpha_mae);
+  result.alpha_iou = mean_of_masked(result.views, &ViewMetrics::alpha_iou);
   result.render_ms_median = median(render_ms);
   return result;
 }
@@ -149,6 +190,10 @@ std::string results_json(const EvalResult& r, const std::string& method, const s
   s += "    \"SSIM\": " + json_number(r.ssim) + ",\n";
   s += "    \"PSNR\": " + json_number(r.psnr);
   if (r.lpips >= 0) s += ",\n    \"LPIPS\": " + json_number(r.lpips);
+  if (r.psnr_masked >= 0) {
+    s += ",\n    \"PSNR_masked\": " + json_number(r.psnr_masked);
+    s += ",\n    \"alpha_MAE\": " + json_number(r.alpha_mae) + ",\n    \"alpha_IoU\": " + json_number(r.alpha_iou);
+  }
   if (!extra_json_members.empty()) s += ",\n    " + extra_json_members;
   return s + "\n  }\n}\n";
 }
@@ -163,6 +208,9 @@ std::string per_view_json(const EvalResult& r, const std::string& method) {
   std::string s = "{\n  " + json_string(method) + ": {\n";
   s += metric("SSIM", &ViewMetrics::ssim) + ",\n" + metric("PSNR", &ViewMetrics::psnr);
   if (r.lpips >= 0) s += ",\n" + metric("LPIPS", &ViewMetrics::lpips);
+  if (r.psnr_masked >= 0)
+    s += ",\n" + metric("PSNR_masked", &ViewMetrics::psnr_masked) + ",\n" + metric("alpha_MAE", &ViewMetrics::alpha_mae) +
+         ",\n" + metric("alpha_IoU", &ViewMetrics::alpha_iou);
   return s + "\n  }\n}\n";
 }
 

@@ -115,6 +115,7 @@ class FloatBackend {
     ro.validate_inputs = false;  // decoded values are finite by construction; debug builds check
 #endif
     ro.fixed_point = fixed_point_raster;
+    for (int c = 0; c < 3; ++c) ro.background[c] = background[c];
     Status st = renderer_->forward(cam, gp, ro, rgb);
     // The tile-intersection count depends on the Gaussians' screen sizes, which training changes;
     // when a view needs more than planned, re-plan once with 1.5x headroom (a rare allocation, not
@@ -150,6 +151,8 @@ class FloatBackend {
   // render_fwd blends with the fixed-point tile kernel (RenderOptions::fixed_point): the on-device
   // render path; training never sets it.
   bool fixed_point_raster = false;
+  // The colour behind the Gaussians (gs/model/background.h); a training step may change it.
+  float background[3] = {0, 0, 0};
 
   Status render_bwd(const float* v_rgb, float* v_means, float* v_log_scales, float* v_quats, float* v_opacities,
                     float* v_colors, float* v_means2d, double* v_pose) {

@@ -12,6 +12,7 @@
 
 #include "byte_codec.h"
 #include "float_backend.h"
+#include "gs/io/composite.h"
 #include "gs/model/image_features.h"
 #include "gs/model/quant_decoder.h"
 #include "gs/optim/adam.h"
@@ -73,6 +74,9 @@ struct Trainer::Impl {
   HybridModel model;
   TrainOptions opt;
   std::vector<const io::DatasetView*> views;
+  // [views] the photos of masked views composited on the evaluation background, for the image
+  // features and the registration passes (empty for a view without a mask: its image is used).
+  std::vector<io::Image8> composited;
   std::vector<Camera> view_cameras;     // [views] current training poses (optimised in place)
   std::vector<const Camera*> cameras;   // -> view_cameras (the image-feature bank reads these)
   std::vector<double> pose_m, pose_v;   // [views, 6] Adam moments of the pose twists
@@ -147,6 +151,7 @@ struct Trainer::Impl {
     if (options.pose_register_every > 0) {
       pose::RegisterOptions ro;
       ro.max_iterations_per_level = 10;
+      for (int ch = 0; ch < 3; ++ch) ro.background[ch] = opt.background.rgb[ch];
       Expected<std::unique_ptr<pose::Registrar>> reg = pose::Registrar::create(model, plan_w, plan_h, ro, pool, kernels, c);
       if (!reg.ok()) return reg.status();
       registrar = std::move(reg).value();
@@ -248,9 +253,12 @@ struct Trainer::Impl {
     return view_order[view_pos++];
   }
 
-  // Target at resolution divisor s (s x s block means, matching scaled_camera).
-  void load_target(const io::DatasetView& v, int s) {
-    io::box_downsample_rgb(v.image.pixels.data(), v.image.width, v.image.height, s, target.data());
+  // The photo of view v as the model should render it (composited when the view has a mask).
+  const io::Image8& photo(size_t v) const { return composited[v].empty() ? views[v]->image : composited[v]; }
+
+  // Target at resolution divisor s (s x s block means, matching scaled_camera), composited on bg.
+  void load_target(const io::DatasetView& v, int s, const float bg[3]) {
+    io::composite_target(v.image, v.mask, s, bg, target.data());
   }
 
   int downscale_at(int it) const {
@@ -269,9 +277,8 @@ struct Trainer::Impl {
     // steps refine at full resolution), and its cost grows with the pixel count.
     registrar->mutable_options().finest_downscale = std::max(2, downscale_at(it));
     for (size_t v = 0; v < views.size(); ++v) {
-      const io::DatasetView& view = *views[v];
       pose::RegisterResult r;
-      GS_RETURN_IF_ERROR(registrar->register_view(view.image.pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
+      GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
       if (!(r.final_rmse < r.initial_rmse) || r.verdict == pose::RegisterVerdict::kDiverged || r.verdict == pose::RegisterVerdict::kNothingVisible)
         continue;
       view_cameras[v].pose = r.pose;
@@ -502,12 +509,15 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
                               std::to_string(v.image.height) + " image with " + std::to_string(v.image.channels) +
                               " channels, but its camera is " + std::to_string(v.camera.intr.width) + "x" +
                               std::to_string(v.camera.intr.height) + " RGB");
+    if (!v.mask.empty() && (v.mask.channels != 1 || v.mask.width != v.image.width || v.mask.height != v.image.height))
+      return invalid_argument("trainer: view '" + v.name + "' has a mask that is not one channel of its image's size");
     d.view_cameras.push_back(v.camera);
-    images.push_back(&v.image);
+    d.composited.push_back(v.mask.empty() ? io::Image8{} : io::composite_rgb8(v.image, v.mask, options.background.rgb));
     max_w = std::max(max_w, v.camera.intr.width);
     max_h = std::max(max_h, v.camera.intr.height);
   }
   for (const Camera& c : d.view_cameras) d.cameras.push_back(&c);
+  for (size_t i = 0; i < train_views.size(); ++i) images.push_back(&d.photo(i));
   d.pose_m.assign(6 * train_views.size(), 0.0);
   d.pose_v.assign(6 * train_views.size(), 0.0);
   d.pose_steps.assign(train_views.size(), 0);
@@ -532,7 +542,11 @@ Status Trainer::step(IterationStats* stats) {
   const io::DatasetView& view = *d.views[size_t(vi)];
   const int scale = d.downscale_at(it);
   const Camera cam = scaled_camera(d.view_cameras[size_t(vi)], scale);
-  d.load_target(view, scale);
+  float bg[3] = {d.opt.background.rgb[0], d.opt.background.rgb[1], d.opt.background.rgb[2]};
+  if (d.opt.background.random)
+    for (float& c : bg) c = float(d.rng.next() >> 40) * (1.0f / 16777216.0f);  // 24 bits, [0, 1)
+  for (int c = 0; c < 3; ++c) d.backend.background[c] = bg[c];
+  d.load_target(view, scale, bg);
   const size_t M = d.model.anchor_count;
   for (ParamGroup& g : d.groups) std::fill(g.grad.begin(), g.grad.begin() + std::ptrdiff_t(g.live(M)), 0.0f);
   ModelParamsT<float> p = d.params();
@@ -764,6 +778,7 @@ Status ModelRenderer::set_options(const ModelRenderOptions& options) {
   Impl& d = *impl_;
   d.options = options;
   d.backend.fixed_point_raster = options.fixed_point_raster;
+  for (int c = 0; c < 3; ++c) d.backend.background[c] = options.background[c];
   return d.plan_int8();
 }
 
@@ -778,10 +793,11 @@ Status ModelRenderer::init(const HybridModel& model, int max_width, int max_heig
   if (!rc.ok()) return rc.status();
   impl_->capacity = cap;
   impl_->backend.fixed_point_raster = impl_->options.fixed_point_raster;
+  for (int c = 0; c < 3; ++c) impl_->backend.background[c] = impl_->options.background[c];
   return impl_->plan_int8();
 }
 
-Status ModelRenderer::render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians) {
+Status ModelRenderer::render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians, float* alpha) {
   Impl& d = *impl_;
   if (model.anchor_count > d.capacity) return capacity_exceeded("model renderer: the model has more anchors than planned");
   GS_RETURN_IF_ERROR(validate_camera(camera));
@@ -799,6 +815,11 @@ Status ModelRenderer::render(const HybridModel& model, const Camera& camera, flo
   const Status st = d.backend.render_fwd(camera, d.ws.ng, rgb);
   d.decode_ms = double(t1 - t0) * 1e-6;
   d.forward_ms = double(platform::now_ns() - t1) * 1e-6;
+  if (st.ok() && alpha) {
+    const size_t n = size_t(camera.intr.width) * size_t(camera.intr.height);
+    const float* T = d.renderer.final_transmittance();
+    for (size_t i = 0; i < n; ++i) alpha[i] = 1.0f - T[i];
+  }
   return st;
 }
 

@@ -2,6 +2,8 @@
 // The compact job (gs/jobs/compact.h).
 #include "gs/jobs/compact.h"
 
+#include <algorithm>
+
 #include <vector>
 
 #include "gs/platform/clock.h"
@@ -39,8 +41,11 @@ Status compact_run(const CompactRunOptions& a, CompactRunSummary* summary) {
     // The compact model as every loader sees it: read back from the file just written.
     Expected<model::HybridModel> back = model::load_model(a.out);
     if (!back.ok()) return back.status();
+    Expected<model::Background> background = model_background(s.source, "");
+    if (!background.ok()) return background.status();
     model::EvalOptions eo;
     eo.psnr_only = true;
+    std::copy(background->rgb, background->rgb + 3, eo.render.background);
     Expected<model::EvalResult> fe = model::evaluate_views(loaded->model, test, eo, &pool);
     if (!fe.ok()) return fe.status();
     Expected<model::EvalResult> ce = model::evaluate_views(*back, test, eo, &pool);

@@ -2,6 +2,7 @@
 // The evaluation job (gs/jobs/evaluate.h).
 #include "gs/jobs/evaluate.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <memory>
 
@@ -35,7 +36,10 @@ Status evaluate_run(const EvaluateRunOptions& a, EvaluateRunSummary* summary) {
   s.source = *src;
   s.out_dir = a.out.empty() ? (fs::path(src->run_dir) / "eval").string() : a.out;
   platform::ThreadPool pool(a.threads);
+  Expected<model::Background> background = model_background(*src, a.background);
+  if (!background.ok()) return background.status();
   model::EvalOptions eo;
+  std::copy(background->rgb, background->rgb + 3, eo.render.background);
   eo.lpips = lpips->get();
   eo.render.fixed_point_raster = a.fixed_point;
   if (a.fixed_point) eo.render.int8_mlp = loaded->compact.get();  // int8 MLPs when the file is compact
@@ -57,6 +61,7 @@ Status evaluate_run(const EvaluateRunOptions& a, EvaluateRunSummary* summary) {
                           {"mean_gaussians_per_view", s.mean_gaussians},
                           {"render_ms_median", r->render_ms_median},
                           {"fixed_point", a.fixed_point},
+                          {"background", a.background.empty() ? src->background : a.background},
                           {"image_features", model::image_feature_mode_name(model->config.image_features)}};
   if (eo.lpips) extra["lpips_backbone"] = metrics::LpipsAlex::kLabel;
   std::string note;

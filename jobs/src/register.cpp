@@ -2,6 +2,8 @@
 // The registration jobs (gs/jobs/register.h): one image, or a dataset split from perturbed starts.
 #include "gs/jobs/register.h"
 
+#include "gs/io/composite.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -116,6 +118,28 @@ Status dataset_camera(const std::string& dataset, int width, int height, Pinhole
   return Status::Ok();
 }
 
+// The image to register as RGB: an alpha channel (RGBA PNG) composites it on the background the
+// model renders on, as training composites masked views.
+Expected<io::Image8> read_composited(const std::string& path, const float background[3]) {
+  Expected<io::Image8> rgba = io::read_image(path, 4);
+  if (!rgba.ok()) return rgba.status();
+  io::Image8 rgb, alpha;
+  rgb.width = alpha.width = rgba->width;
+  rgb.height = alpha.height = rgba->height;
+  rgb.channels = 3;
+  alpha.channels = 1;
+  const size_t n = size_t(rgba->width) * size_t(rgba->height);
+  rgb.pixels.resize(3 * n);
+  alpha.pixels.resize(n);
+  bool opaque = true;
+  for (size_t p = 0; p < n; ++p) {
+    for (int c = 0; c < 3; ++c) rgb.pixels[3 * p + size_t(c)] = rgba->pixels[4 * p + size_t(c)];
+    alpha.pixels[p] = rgba->pixels[4 * p + 3];
+    opaque = opaque && alpha.pixels[p] == 255;
+  }
+  return opaque ? rgb : io::composite_rgb8(rgb, alpha, background);
+}
+
 }  // namespace
 
 Expected<pose::RegisterOptions> register_options(const RegisterRunOptions& a) {
@@ -151,6 +175,9 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
   } else {
     return Status(resolved.status().code(), resolved.status().message() + " (or pass --camera \"fx fy cx cy\")");
   }
+  Expected<model::Background> background = model_background(s.source, a.background);
+  if (!background.ok()) return background.status();
+  std::copy(background->rgb, background->rgb + 3, ro->background);
   Expected<model::HybridModel> model = model::load_model(s.source.model_path);
   if (!model.ok()) return model.status();
   // A start pose far outside the scene cannot be registered (the model is not in view, and float
@@ -174,7 +201,7 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
                               g(kMaxStartDistanceInRadii) + " times the scene radius " + g(model->scene_extent) +
                               "; check the pose's order (qw qx qy qz tx ty tz, world-to-camera as in COLMAP) and units");
   }
-  Expected<io::Image8> img = io::read_image(a.image, 3);
+  Expected<io::Image8> img = read_composited(a.image, background->rgb);
   if (!img.ok()) return img.status();
   K.width = img->width;
   K.height = img->height;
@@ -235,6 +262,9 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   const model::HybridModel* model = &loaded->model;
   const std::unique_ptr<LoadedDataset>* data = &loaded->data;
   io::Dataset& ds = (*data)->dataset;
+  Expected<model::Background> background = model_background(*src, a.background);
+  if (!background.ok()) return background.status();
+  std::copy(background->rgb, background->rgb + 3, ro->background);
   // True poses and the scene frame of the training cameras; the start poses are the perturbed ones.
   PoseTruth truth;
   if (Status st = apply_pose_noise(&ds, a.init_noise, a.views, &truth); !st.ok())
@@ -272,7 +302,8 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
     row.name = v.name;
     row.initial_rotation_deg = pose::rotation_error_deg(v.camera.pose, gt);
     row.initial_translation = centre_distance(v.camera.pose, gt);
-    if (Status st = (*reg)->register_view(v.image.pixels.data(), v.camera.intr, v.camera.pose, &row.result); !st.ok())
+    const io::Image8 photo = io::composite_rgb8(v.image, v.mask, background->rgb);  // a copy only when masked
+    if (Status st = (*reg)->register_view(photo.pixels.data(), v.camera.intr, v.camera.pose, &row.result); !st.ok())
       return Status(st.code(), "view " + v.name + ": " + st.message());
     row.rotation_deg = pose::rotation_error_deg(row.result.pose, gt);
     row.translation = centre_distance(row.result.pose, gt);
@@ -294,6 +325,7 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   std::vector<const io::DatasetView*> split_views;
   for (size_t k = 0; k < index.size(); ++k) split_views.push_back(&ds.views[index[k]]);
   model::EvalOptions eo;
+  std::copy(background->rgb, background->rgb + 3, eo.render.background);
   eo.render.fixed_point_raster = a.fixed_point;
   if (a.fixed_point) eo.render.int8_mlp = loaded->compact.get();  // int8 MLPs when the file is compact
   Expected<model::EvalResult> m_start = model::evaluate_views(*model, split_views, eo, &pool);

@@ -92,11 +92,11 @@ Status render_model(const RenderRunOptions& a, const std::function<void(const Re
   const double t0 = platform::now_seconds();
   if (!a.ply.empty()) return invalid_argument("--ply cannot be combined with a trained model (" + a.input + ")");
   if (!a.isa.empty()) return invalid_argument("--isa applies to PLY / SfM-point rendering, not to a trained model");
-  if (a.background[0] != 0 || a.background[1] != 0 || a.background[2] != 0)
-    return invalid_argument("--background is not supported for a trained model");
   Expected<ModelViews> loaded = load_model_views(a.input, a.model_dataset, a.max_width, a.split);
   if (!loaded.ok()) return loaded.status();
   const ModelSource* src = &loaded->source;
+  Expected<model::Background> background = model_background(*src, a.background);
+  if (!background.ok()) return background.status();
   const model::HybridModel* model = &loaded->model;
   const std::unique_ptr<LoadedDataset>* data = &loaded->data;
   GS_RETURN_IF_ERROR(check_output_outside_dataset(a.out, src->dataset));
@@ -111,6 +111,7 @@ Status render_model(const RenderRunOptions& a, const std::function<void(const Re
   platform::ThreadPool pool(a.threads);
   model::EvalOptions eo;
   eo.render_dir = a.out;
+  std::copy(background->rgb, background->rgb + 3, eo.render.background);
   eo.render.fixed_point_raster = a.fixed_point;
   if (a.fixed_point) eo.render.int8_mlp = loaded->compact.get();  // int8 MLPs when the file is compact
   Expected<model::EvalResult> r = model::evaluate_views(*model, (*data)->views, eo, &pool);
@@ -175,26 +176,6 @@ Status render_model(const RenderRunOptions& a, const std::function<void(const Re
 
 }  // namespace
 
-Status parse_background(const std::string& text, float rgb[3]) {
-  std::istringstream in(text);
-  std::string part;
-  int n = 0;
-  while (std::getline(in, part, ',')) {
-    if (n == 3) return invalid_argument("--background: expected three comma-separated values r,g,b");
-    size_t used = 0;
-    float v = 0;
-    try {
-      v = std::stof(part, &used);
-    } catch (const std::exception&) {
-      return invalid_argument("--background: '" + part + "' is not a number");
-    }
-    if (used != part.size() || !std::isfinite(v) || v < 0.f || v > 1.f)
-      return invalid_argument("--background: '" + part + "' is not a number in [0, 1]");
-    rgb[n++] = v;
-  }
-  return n == 3 ? Status::Ok() : invalid_argument("--background: expected three comma-separated values r,g,b");
-}
-
 Status render_run(const RenderRunOptions& a, const std::function<void(const RenderedView&, size_t, size_t)>& progress,
                   RenderRunSummary* summary) {
   if (a.split != "all" && a.split != "train" && a.split != "test")
@@ -211,9 +192,10 @@ Status render_run(const RenderRunOptions& a, const std::function<void(const Rend
   if (!kernels)
     return invalid_argument("kernel ISA '" + a.isa + "' is not available in this build on this CPU (available: " +
                             available_isas() + ")");
-  const float* background = a.background;
-  for (int k = 0; k < 3; ++k)
-    if (!(background[k] >= 0.f && background[k] <= 1.f)) return invalid_argument("--background: values must be in [0, 1]");
+  Expected<model::Background> parsed_background = model::parse_background(a.background.empty() ? "black" : a.background);
+  if (!parsed_background.ok()) return Status(parsed_background.status().code(), "--background: " + parsed_background.status().message());
+  if (parsed_background->random) return invalid_argument("--background random is for training; give a colour to render with");
+  const float* background = parsed_background->rgb;
   GS_RETURN_IF_ERROR(check_output_outside_dataset(a.out, a.input));
 
   const double load_t0 = platform::now_seconds();

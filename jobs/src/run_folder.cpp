@@ -110,7 +110,20 @@ Expected<ModelSource> resolve_model_source(const std::string& path, const std::s
   if (s.dataset.empty())
     return invalid_argument("no dataset for " + path + ": no " + kRunJson + " next to it names one; pass --dataset DIR");
   s.max_width = max_width_override >= 0 ? max_width_override : run.value("max_width", 0);
+  if (run.contains("options") && run["options"].is_object() && run["options"].contains("background")) {
+    if (!run["options"]["background"].is_string()) return parse_error(run_json + ": options.background is not a string");
+    s.background = run["options"]["background"].get<std::string>();
+  }
   return s;
+}
+
+Expected<model::Background> model_background(const ModelSource& source, const std::string& override_text) {
+  const std::string& text = override_text.empty() ? source.background : override_text;
+  Expected<model::Background> b = model::parse_background(text);
+  if (!b.ok())
+    return Status(b.status().code(), (override_text.empty() ? source.run_dir + "/" + kRunJson + ": " : std::string("--background: ")) +
+                                         b.status().message());
+  return b;
 }
 
 Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& root, int max_width,

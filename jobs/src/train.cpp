@@ -143,6 +143,7 @@ std::vector<fs::path> run_outputs(const std::string& run) {
 template <class Visit>
 void for_each_recorded_option(TrainRunOptions* a, Visit&& visit) {
   visit("image-features", &a->image_features, true);
+  visit("background", &a->background, true);
   visit("max-anchors", &a->max_anchors, true);
   visit("max-gaussians", &a->max_gaussians, true);
   visit("voxel-size", &a->voxel_size, true);
@@ -215,6 +216,7 @@ std::string run_json(const TrainRunOptions& a) {
   j["dataset"] = absolute_path(a.dataset);
   j["max_width"] = a.max_width;
   j["options"] = {{"iterations", a.iterations},         {"image-features", a.image_features},
+                  {"background", a.background},
                   {"max-anchors", a.max_anchors},       {"max-gaussians", a.max_gaussians},
                   {"voxel-size", a.voxel_size},         {"seed", a.seed},
                   {"offsets", a.offsets},               {"feature-dim", a.feature_dim},
@@ -251,7 +253,10 @@ Expected<ResolvedTraining> resolve_training(const TrainRunOptions& a) {
   Expected<model::ImageFeatureMode> mode = model::parse_image_feature_mode(a.image_features);
   if (!mode.ok()) return invalid_argument("--image-features: " + mode.status().message());
   if (a.iterations < 1) return invalid_argument("--iterations must be at least 1");
+  Expected<model::Background> background = model::parse_background(a.background);
+  if (!background.ok()) return invalid_argument("--background: " + background.status().message());
   ResolvedTraining r;
+  r.train.background = *background;
   r.model.image_features = *mode;
   r.model.max_anchors = a.max_anchors;
   r.model.max_gaussians = a.max_gaussians;
@@ -594,6 +599,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
   auto quick_psnr = [&](int it) -> Status {
     model::EvalOptions quick;
     quick.psnr_only = true;
+    std::copy(trainer.options().background.rgb, trainer.options().background.rgb + 3, quick.render.background);
     Expected<model::EvalResult> r = model::evaluate_views(trainer.model(), d.test_views, quick, &pool);
     if (!r.ok()) return r.status();
     add_psnr_row(it, r->psnr);
@@ -607,6 +613,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     const std::string method = "ours_" + std::to_string(it);
     model::EvalOptions eo;
     eo.lpips = net;
+    std::copy(trainer.options().background.rgb, trainer.options().background.rgb + 3, eo.render.background);
     eo.render_dir = (fs::path(a.out) / "test" / method / "renders").string();
     Expected<model::EvalResult> r = model::evaluate_views(m, d.test_views, eo, &pool);
     if (!r.ok()) return r.status();
@@ -622,6 +629,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
         {"mean_gaussians_per_view", gaussians / double(r->views.size())},
         {"render_ms_median", r->render_ms_median},
         {"image_features", model::image_feature_mode_name(m.config.image_features)},
+        {"background", a.background},
         {"test_views", r->views.size()},
         {"isa", kernels.isa},
         {"threads", pool.num_threads()}};

@@ -38,75 +38,19 @@
 #include "support/model_fixtures.h"
 #include "support/reduced.h"
 #include "support/temp_dir.h"
+#include "support/train_scene.h"
 
 namespace gs::model {
 namespace {
 
-constexpr int kW = 64, kH = 48, kViews = 8;
-
 using test::read_bytes;
 using test::write_bytes;
-
-Camera look_at(const double C[3], const double at[3]) {
-  return test::look_at(C, at, PinholeIntrinsics{58, 58, 0.5f * kW + 0.7f, 0.5f * kH - 0.4f, kW, kH});
-}
+using test::kSceneH;
+using test::kSceneW;
 
 
-// The dataset: views around a random cloud of coloured Gaussians, and points sampled from it.
-struct Scene {
-  std::vector<io::DatasetView> views;
-  std::vector<const io::DatasetView*> ptrs;
-  std::vector<float> points;
-
-  Scene() {
-    std::mt19937_64 rng(2024);
-    std::uniform_real_distribution<float> u(-1, 1), u01(0, 1);
-    std::normal_distribution<float> nrm(0, 1);
-    const size_t n = 500;
-    std::vector<float> means(3 * n), ls(3 * n), quats(4 * n), op(n), col(3 * n);
-    for (size_t i = 0; i < n; ++i) {
-      for (int c = 0; c < 3; ++c) means[3 * i + size_t(c)] = 1.1f * u(rng);
-      for (int c = 0; c < 3; ++c) ls[3 * i + size_t(c)] = std::log(0.06f + 0.12f * u01(rng));
-      for (int c = 0; c < 4; ++c) quats[4 * i + size_t(c)] = nrm(rng);
-      op[i] = 0.5f + 0.45f * u01(rng);
-      // Colour varies smoothly in space plus noise, so that neighbouring anchors can share features.
-      for (int c = 0; c < 3; ++c) col[3 * i + size_t(c)] = std::clamp(0.5f + 0.4f * means[3 * i + size_t(c)] + 0.15f * u(rng), 0.0f, 1.0f);
-    }
-    Renderer r;
-    RenderCapacity cap;
-    cap.max_gaussians = n;
-    cap.max_width = kW;
-    cap.max_height = kH;
-    cap.max_sh_degree = 0;
-    REQUIRE(r.init(cap, nullptr).ok());
-    GaussianParams gp;
-    gp.count = n;
-    gp.means = means.data();
-    gp.log_scales = ls.data();
-    gp.quats = quats.data();
-    gp.opacities = op.data();
-    gp.colors = col.data();
-    std::vector<float> rgb(size_t(kW) * kH * 3);
-    views.resize(kViews);
-    for (int v = 0; v < kViews; ++v) {
-      const double a = 2 * 3.14159265358979323846 * v / kViews;
-      const double C[3] = {4.2 * std::sin(a), -1.0 - 0.5 * std::cos(3 * a), -4.2 * std::cos(a)};
-      const double at[3] = {0.1 * std::cos(a), 0, 0.1 * std::sin(a)};
-      io::DatasetView& dv = views[size_t(v)];
-      dv.name = "view_" + std::to_string(v) + ".png";
-      dv.image_id = uint32_t(v + 1);
-      dv.camera = look_at(C, at);
-      REQUIRE(r.forward(dv.camera, gp, RenderOptions{}, rgb.data()).ok());
-      dv.image = io::image_from_float_rgb(rgb.data(), kW, kH);
-    }
-    for (auto& v : views) ptrs.push_back(&v);
-    for (size_t i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) points.push_back(means[3 * i + size_t(c)] + 0.01f * nrm(rng));
-  }
-};
-
-const Scene& scene() {
-  static const Scene s;
+const test::TrainScene& scene() {
+  static const test::TrainScene s;
   return s;
 }
 
@@ -124,7 +68,7 @@ ModelConfig config(size_t max_anchors = 400, size_t max_gaussians = 4000, ImageF
 }
 
 HybridModel initial_model(const ModelConfig& c, uint64_t seed = 1) {
-  const Scene& s = scene();
+  const test::TrainScene& s = scene();
   std::vector<const Camera*> cams;
   for (const auto& v : s.views) cams.push_back(&v.camera);
   Expected<HybridModel> m = create_model(c, s.points.data(), s.points.size() / 3, cameras_extent(cams), seed);
@@ -163,8 +107,9 @@ TrainOptions busy_options(int iterations) {
   return o;
 }
 
-std::unique_ptr<Trainer> make_trainer(HybridModel model, const TrainOptions& o, platform::ThreadPool* pool) {
-  auto t = Trainer::create(std::move(model), scene().ptrs, o, pool);
+std::unique_ptr<Trainer> make_trainer(HybridModel model, const TrainOptions& o, platform::ThreadPool* pool,
+                                      const test::TrainScene& s = scene()) {
+  auto t = Trainer::create(std::move(model), s.ptrs, o, pool);
   REQUIRE_MESSAGE(t.ok(), t.status().to_string());
   return std::move(*t);
 }
@@ -231,7 +176,7 @@ void check_budget(size_t max_anchors, size_t max_gaussians) {
   ModelConfig c = config(max_anchors, max_gaussians);
   const size_t cap = c.anchor_capacity();
   // Start at 60-90% of the capacity (a voxel size chosen by count), so growth must hit the budget.
-  const Scene& s = scene();
+  const test::TrainScene& s = scene();
   const size_t np = s.points.size() / 3;
   for (float eps = 2.0f; eps > 0.01f; eps *= 0.95f) {
     Expected<size_t> n = count_occupied_voxels(s.points.data(), np, eps);
@@ -279,7 +224,7 @@ TEST_CASE("trainer: anchor and Gaussian budgets hold under aggressive growth") {
 // Gaussian. A legitimate model state must not make step() fail.
 TEST_CASE("trainer: large Gaussians at full capacity do not overflow the renderer plan") {
   ModelConfig c = config(60, 100000);
-  const Scene& s = scene();
+  const test::TrainScene& s = scene();
   const size_t cap = c.anchor_capacity(), np = s.points.size() / 3;
   for (float eps = 2.0f; eps > 0.01f; eps *= 0.97f) {  // the smallest voxel that still fits the capacity
     Expected<size_t> n = count_occupied_voxels(s.points.data(), np, eps);
@@ -360,13 +305,14 @@ TEST_CASE("trainer: rows grow with the anchors, up to the budget, with results i
   CHECK(a.poses == b.poses);
 }
 
-void check_resume(platform::ThreadPool* pool) {
+// o: busy_options(30), or a variant of it; s: the scene trained on.
+void check_resume(platform::ThreadPool* pool, const TrainOptions& o = busy_options(30), const test::TrainScene& s = scene()) {
   test::TempDir dir("gs_trainer");
   const std::string ckpt = dir / "ckpt.bin";
   const HybridModel m0 = initial_model(config());
-  auto a = make_trainer(m0, busy_options(30), pool);
+  auto a = make_trainer(m0, o, pool, s);
   const RunResult full = run(a, 30, ckpt, 15);
-  auto b = make_trainer(m0, busy_options(30), pool);
+  auto b = make_trainer(m0, o, pool, s);
   const Status st = b->load_checkpoint(ckpt);
   REQUIRE_MESSAGE(st.ok(), st.to_string());
   CHECK(b->iteration() == 15);
@@ -386,7 +332,7 @@ void check_resume(platform::ThreadPool* pool) {
   }
   CHECK(full.poses != initial);  // the poses were optimised, so their state was really resumed
   // A third run from scratch repeats the first exactly (the run is deterministic at all).
-  auto c = make_trainer(m0, busy_options(30), pool);
+  auto c = make_trainer(m0, o, pool, s);
   CHECK(run(c, 30).model == full.model);
 }
 
@@ -396,7 +342,7 @@ void check_resume(platform::ThreadPool* pool) {
 TEST_CASE("trainer: joint pose optimisation pulls noisy poses back towards the truth" * GS_FULL_SIZE_ONLY) {
   // Every view's pose rotated by 2 degrees about a random axis through its centre and moved by 3 %
   // of the camera radius; the scene is learnt from scratch together with the poses.
-  const Scene& s = scene();
+  const test::TrainScene& s = scene();
   std::vector<io::DatasetView> noisy = s.views;
   std::vector<Pose> truth, start;
   double centre[3], radius = 0;
@@ -512,6 +458,14 @@ TEST_CASE("trainer: checkpoint at 15 then resume to 30 is bit-identical to an un
   platform::ThreadPool pool(2);
   // Reduced size: the 2-thread run only (threads are the harder case for bit-identical resumption).
   for (platform::ThreadPool* p : test::full_or_first<platform::ThreadPool*>({&pool, nullptr}, 1)) check_resume(p);
+}
+
+TEST_CASE("trainer: masked views on a random background resume bit-identically (the colours come from the run's generator)") {
+  static const test::TrainScene masked(true);
+  TrainOptions o = busy_options(30);
+  o.background.random = true;
+  platform::ThreadPool pool(2);
+  check_resume(&pool, o, masked);
 }
 
 TEST_CASE("trainer: a run killed at a random moment leaves a checkpoint that loads and resumes") {
@@ -641,7 +595,7 @@ TEST_CASE("trainer: bad inputs are refused with clear messages") {
   CHECK(none.status().message().find("no training views") != std::string::npos);
   // An image whose size differs from its camera: the message names the view and both sizes.
   std::vector<io::DatasetView> views(scene().views.begin(), scene().views.end());
-  views[3].image = io::resize_area(views[3].image, kW / 2, kH / 2);
+  views[3].image = io::resize_area(views[3].image, kSceneW / 2, kSceneH / 2);
   std::vector<const io::DatasetView*> ptrs;
   for (auto& v : views) ptrs.push_back(&v);
   auto bad = Trainer::create(m0, ptrs, quiet_options(10), nullptr);
@@ -649,8 +603,8 @@ TEST_CASE("trainer: bad inputs are refused with clear messages") {
   MESSAGE(bad.status().to_string());
   const std::string msg = bad.status().message();
   CHECK(msg.find(views[3].name) != std::string::npos);
-  CHECK(msg.find(std::to_string(kW / 2)) != std::string::npos);
-  CHECK(msg.find(std::to_string(kW)) != std::string::npos);
+  CHECK(msg.find(std::to_string(kSceneW / 2)) != std::string::npos);
+  CHECK(msg.find(std::to_string(kSceneW)) != std::string::npos);
   // A model holding more anchors than its capacity, and one with no anchors.
   HybridModel over = m0;
   over.anchor_count = over.capacity() + 1;

@@ -82,6 +82,7 @@ struct Registrar::Impl {
     ro.validate_inputs = false;  // decoded values are finite by construction
     ro.depth = depth;
     ro.fixed_point = opt.fixed_point;
+    for (int c = 0; c < 3; ++c) ro.background[c] = float(opt.background[c]);
     return ro;
   }
 

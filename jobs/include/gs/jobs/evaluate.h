@@ -24,6 +24,7 @@ struct EvaluateRunOptions {
   int threads = 0;              // 0: all CPUs
   bool renders = false;         // also write <out>/<split>/<method>/renders/*.png
   bool fixed_point = false;     // the on-device path: fixed-point blending (RenderOptions::fixed_point)
+  std::string background;       // black, white or r,g,b ("" : the run's training background)
 };
 
 struct EvaluateRunSummary {

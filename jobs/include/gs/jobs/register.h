@@ -28,6 +28,9 @@ struct RegisterRunOptions {
   double time_budget_ms = 0;        // > 0: stop a view after this long, keeping the best pose
   int threads = 0;                  // 0: all CPUs
   std::string json;                 // "" or a file that also gets the JSON result
+  // The colour behind the model (black, white or r,g,b; "" : the run's training background). Masked
+  // views, and the alpha of an RGBA image, are composited on it before registration.
+  std::string background;
   // One image: its file, the start pose "qw qx qy qz tx ty tz" and optionally "fx fy cx cy" (default:
   // the dataset's one shared camera, scaled to the image).
   std::string image, init, camera;

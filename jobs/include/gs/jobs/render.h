@@ -24,7 +24,9 @@ struct RenderRunOptions {
   int threads = 0;            // 0: all CPUs
   std::string isa;            // dataset input: kernel table ("" : the best for this CPU)
   std::string split = "all";  // "all", "train" or "test"
-  float background[3] = {0, 0, 0};  // dataset input: background colour in [0, 1]
+  // Background (gs/model/background.h text: black, white or r,g,b): "" is black for a dataset and
+  // the run's training background for a model.
+  std::string background;
   bool fixed_point = false;   // model input: the on-device fixed-point blending (RenderOptions::fixed_point)
 };
 
@@ -47,9 +49,6 @@ struct RenderRunSummary {
   int max_width = 0, max_height = 0, threads = 0;
   double median_ms = 0, mean_ms = 0, mean_psnr = 0, mean_ssim = -1, load_seconds = 0, total_seconds = 0;
 };
-
-// Parses "r,g,b" with each component in [0, 1] (the CLI's --background).
-Status parse_background(const std::string& text, float rgb[3]);
 
 // progress: called after each view with its result, its 1-based number and the count.
 Status render_run(const RenderRunOptions& options, const std::function<void(const RenderedView&, size_t, size_t)>& progress,

@@ -11,6 +11,7 @@
 
 #include "gs/io/colmap.h"
 #include "gs/metrics/lpips.h"
+#include "gs/model/background.h"
 #include "gs/model/compact_model.h"
 #include "gs/model/hybrid_model.h"
 #include "gs/status.h"
@@ -37,7 +38,11 @@ bool is_model_input(const std::string& path);
 struct ModelSource {
   std::string model_path, run_dir, dataset;
   int max_width = 0;
+  std::string background = "black";  // the run's training background (run.json; black without one)
 };
+// The background to render a model on: override (parse_background's text) when not empty, else the
+// run's; "random" means the colour a random-background run is evaluated on (black).
+Expected<model::Background> model_background(const ModelSource& source, const std::string& override_text);
 Expected<ModelSource> resolve_model_source(const std::string& path, const std::string& dataset_override,
                                            int max_width_override);
 

@@ -37,6 +37,9 @@ struct TrainRunOptions {
   std::string out;      // run folder (train_run only)
   int iterations = 30000;
   std::string image_features = "paper";  // "paper" or "none" (plain Scaffold-GS)
+  // What renders are blended on and masked views composited on (gs/model/background.h): black,
+  // white, random (a colour per iteration; evaluated on black) or r,g,b.
+  std::string background = "black";
   size_t max_anchors = 50000, max_gaussians = 500000;
   float voxel_size = 0.0f;  // anchor voxel size in world units (0: automatic)
   int offsets = 10;         // neural Gaussians (offsets) per anchor, k

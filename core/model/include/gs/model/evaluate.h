@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: MIT
-// Evaluation of a trained model on held-out views (ALGORITHM.md Part A item 10): render each view,
-// quantise to 8 bits, then PSNR, SSIM and (when weights are given) LPIPS-Alex against the 8-bit
-// ground truth; optional PNG output; results in the 3DGS results.json / per_view.json schema.
+// Evaluation of a trained model on held-out views (ALGORITHM.md Part A item 10): render each view
+// on the model's background, quantise to 8 bits, then PSNR, SSIM and (when weights are given)
+// LPIPS-Alex against the 8-bit ground truth (a masked view's photo composited on the same
+// background, gs/io/composite.h), and for masked views PSNR inside the mask and the rendered alpha
+// against the mask; optional PNG output; results in the 3DGS results.json / per_view.json schema.
 #pragma once
 
 #include <cstddef>
@@ -22,6 +24,10 @@ struct ViewMetrics {
   std::string name;
   double psnr = 0, ssim = 0;
   double lpips = -1;       // < 0: not computed (no weights)
+  // Views with a mask (DatasetView::mask; < 0 otherwise): PSNR over the subject only (squared
+  // errors weighted by the mask), and the rendered alpha (1 - final transmittance) against the
+  // mask: mean absolute difference and intersection over union of the two thresholded at 0.5.
+  double psnr_masked = -1, alpha_mae = -1, alpha_iou = -1;
   double render_ms = 0;    // model decode + render, one view
   size_t gaussians = 0;    // kept neural Gaussians in this view
 };
@@ -29,6 +35,7 @@ struct ViewMetrics {
 struct EvalResult {
   std::vector<ViewMetrics> views;
   double psnr = 0, ssim = 0, lpips = -1;  // means over views (lpips < 0: not computed)
+  double psnr_masked = -1, alpha_mae = -1, alpha_iou = -1;  // means over the views with a mask (< 0: none)
   double render_ms_median = 0;
 };
 
@@ -49,7 +56,7 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
 
 // 3DGS schema: results.json = {"<method>": {"SSIM": s, "PSNR": p, "LPIPS": l}} and
 // per_view.json = {"<method>": {"SSIM": {name: s}, "PSNR": {...}, "LPIPS": {...}}}; LPIPS keys are
-// omitted when it was not computed. extra_json (an object's members, may be empty) is merged into
+// omitted when it was not computed; with masks, "PSNR_masked", "alpha_MAE" and "alpha_IoU" too. extra_json (an object's members, may be empty) is merged into
 // results.json's method object (timings, model size, LPIPS backbone label).
 std::string results_json(const EvalResult& r, const std::string& method, const std::string& extra_json_members);
 std::string per_view_json(const EvalResult& r, const std::string& method);

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "gs/io/colmap.h"
+#include "gs/model/background.h"
 #include "gs/model/hybrid_model.h"
 #include "gs/model/step_graph.h"
 #include "gs/optim/adam.h"
@@ -31,6 +32,10 @@ struct TrainOptions {
   int schedule_iterations = 30000;  // horizon of the exponential learning-rate schedules
   uint64_t seed = 0;
   StepConfig step;
+  // The colour renders are blended on, and which the targets of masked views (DatasetView::mask)
+  // are composited on: image * mask + background * (1 - mask). Random: a new colour per iteration
+  // (drawn from the run's generator, so resuming stays bit-identical).
+  Background background;
   // Learning rates (Part B section 6). Offsets are scaled by the scene extent.
   double lr_offset_init = 0.01, lr_offset_final = 0.0001;
   double lr_feature = 0.0075;
@@ -132,6 +137,7 @@ class Trainer {
 struct CompactModel;
 
 struct ModelRenderOptions {
+  float background[3] = {0, 0, 0};  // the colour behind the Gaussians (the model's training background)
   bool fixed_point_raster = false;  // RenderOptions::fixed_point: the int16 tile kernel (gs/simd/qsplat.h)
   // Non-null: the decoder MLPs run as int8 (qmlp_fwd, gs/model/quant_decoder.h) with this compact
   // model's weights and calibrated ranges; the model rendered must be its dequantize(). Kept alive
@@ -150,7 +156,9 @@ class ModelRenderer {
   Status init(const HybridModel& model, int max_width, int max_height, platform::ThreadPool* pool,
               const simd::KernelTable* kernels = nullptr);
   // rgb: [H, W, 3] floats (not clamped). gaussians: kept neural Gaussians of this view (optional).
-  Status render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians = nullptr);
+  // alpha [H, W] (optional): the render's opacity, 1 - final transmittance.
+  Status render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians = nullptr,
+                float* alpha = nullptr);
   // Wall time of the last render's two stages, ms: decoding the anchors (MLPs) and the Gaussian
   // renderer's forward (projection, binning, sorting, blending).
   double last_decode_ms() const;

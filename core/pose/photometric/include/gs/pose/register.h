@@ -69,6 +69,9 @@ struct RegisterOptions {
   // colour, depth, alpha) use the fixed-point blending (RenderOptions::fixed_point); the lm and
   // adam solvers and the full-resolution renderer-Jacobian polish stay float (they need a backward).
   bool fixed_point = false;
+  // The colour behind the model's Gaussians in every render: the background it was trained on
+  // (gs/model/background.h); the image should be composited on the same colour where it has a mask.
+  float background[3] = {0, 0, 0};
   float huber_delta = 0.1f;      // per-pixel residual norm beyond which the weight falls as 1/|r|
   // Stopping: a level ends when an accepted step moves less than these (rad; x scene extent) or the
   // cost falls by a relative amount below min_relative_decrease.
