@@ -110,7 +110,12 @@ Expected<std::vector<std::string>> render_png_paths(const std::string& dir, cons
   return out;
 }
 
-Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<const io::DatasetView*>& views,
+namespace {
+
+// The evaluation of either scene type: Scene is a HybridModel or a GaussianCloud, both of which
+// ModelRenderer plans for and renders.
+template <class Scene>
+Expected<EvalResult> evaluate_scene(const Scene& model, const std::vector<const io::DatasetView*>& views,
                                     const EvalOptions& options, platform::ThreadPool* pool) {
   if (views.empty()) return invalid_argument("evaluation: no views to evaluate");
   int max_w = 0, max_h = 0;
@@ -183,6 +188,18 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
   result.alpha_iou = mean_of_masked(result.views, &ViewMetrics::alpha_iou);
   result.render_ms_median = median(render_ms);
   return result;
+}
+
+}  // namespace
+
+Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<const io::DatasetView*>& views,
+                                    const EvalOptions& options, platform::ThreadPool* pool) {
+  return evaluate_scene(model, views, options, pool);
+}
+
+Expected<EvalResult> evaluate_views(const GaussianCloud& cloud, const std::vector<const io::DatasetView*>& views,
+                                    const EvalOptions& options, platform::ThreadPool* pool) {
+  return evaluate_scene(cloud, views, options, pool);
 }
 
 std::string results_json(const EvalResult& r, const std::string& method, const std::string& extra_json_members) {

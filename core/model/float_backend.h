@@ -109,7 +109,10 @@ class FloatBackend {
   }
 
   Status render_fwd(const Camera& cam, const NeuralGaussians<float>& ng, float* rgb) {
-    const GaussianParams gp = gaussian_params(ng);
+    return render_params(cam, gaussian_params(ng), rgb);
+  }
+  // The same for any Gaussians with colours (plain Gaussians: gs/model/cloud_decode.h).
+  Status render_params(const Camera& cam, const GaussianParams& gp, float* rgb) {
     RenderOptions ro;
 #ifdef NDEBUG
     ro.validate_inputs = false;  // decoded values are finite by construction; debug builds check

@@ -11,6 +11,7 @@
 #include <numeric>
 
 #include "byte_codec.h"
+#include "cloud_decode.h"
 #include "float_backend.h"
 #include "gs/io/composite.h"
 #include "gs/model/image_features.h"
@@ -753,6 +754,14 @@ struct ModelRenderer::Impl {
   double decode_ms = 0, forward_ms = 0;
   QuantDecoder int8;
   const CompactModel* int8_source = nullptr;  // what int8 was prepared from
+  detail::CloudDecoder cloud;  // plain Gaussians (init with a GaussianCloud)
+
+  void finish(Status st, const Camera& camera, float* alpha) const {
+    if (!st.ok() || !alpha) return;
+    const size_t n = size_t(camera.intr.width) * size_t(camera.intr.height);
+    const float* T = renderer.final_transmittance();
+    for (size_t i = 0; i < n; ++i) alpha[i] = 1.0f - T[i];
+  }
 
   // Prepares (once per compact model) and attaches the int8 decoder, or detaches it.
   Status plan_int8() {
@@ -815,11 +824,36 @@ Status ModelRenderer::render(const HybridModel& model, const Camera& camera, flo
   const Status st = d.backend.render_fwd(camera, d.ws.ng, rgb);
   d.decode_ms = double(t1 - t0) * 1e-6;
   d.forward_ms = double(platform::now_ns() - t1) * 1e-6;
-  if (st.ok() && alpha) {
-    const size_t n = size_t(camera.intr.width) * size_t(camera.intr.height);
-    const float* T = d.renderer.final_transmittance();
-    for (size_t i = 0; i < n; ++i) alpha[i] = 1.0f - T[i];
-  }
+  d.finish(st, camera, alpha);
+  return st;
+}
+
+Status ModelRenderer::init(const GaussianCloud& cloud, int max_width, int max_height, platform::ThreadPool* pool,
+                           const simd::KernelTable* kernels) {
+  Impl& d = *impl_;
+  if (cloud.size() == 0) return invalid_argument("model renderer: the cloud has no Gaussians");
+  const simd::KernelTable* kt = kernels ? kernels : &simd::best_kernel_table();
+  GS_RETURN_IF_ERROR(d.renderer.init(detail::cloud_render_capacity(cloud.size(), max_width, max_height), pool, kt));
+  d.backend.init(&d.renderer, kt, pool, 1, max_width);
+  d.backend.fixed_point_raster = d.options.fixed_point_raster;
+  for (int c = 0; c < 3; ++c) d.backend.background[c] = d.options.background[c];
+  d.cloud.reserve(cloud.size(), cloud.sh_degree);
+  d.capacity = 0;  // no anchor model planned
+  return Status::Ok();
+}
+
+Status ModelRenderer::render(const GaussianCloud& cloud, const Camera& camera, float* rgb, size_t* gaussians, float* alpha) {
+  Impl& d = *impl_;
+  if (cloud.size() > d.cloud.capacity()) return capacity_exceeded("model renderer: the cloud has more Gaussians than planned");
+  GS_RETURN_IF_ERROR(validate_camera(camera));
+  const uint64_t t0 = platform::now_ns();
+  const size_t n = d.cloud.decode(cloud, camera);
+  const uint64_t t1 = platform::now_ns();
+  if (gaussians) *gaussians = n;
+  const Status st = d.backend.render_params(camera, d.cloud.params(), rgb);
+  d.decode_ms = double(t1 - t0) * 1e-6;
+  d.forward_ms = double(platform::now_ns() - t1) * 1e-6;
+  d.finish(st, camera, alpha);
   return st;
 }
 

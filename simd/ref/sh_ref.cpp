@@ -74,6 +74,11 @@ T view_dir(const T* mean, const T* campos, T dir[3]) {
 }  // namespace
 
 template <class T>
+void sh_basis_ref(int32_t degree, const T dir[3], T b[16]) {
+  sh_basis<T>(degree, dir[0], dir[1], dir[2], b, nullptr);
+}
+
+template <class T>
 void sh_fwd_ref(size_t n, int32_t degree, const T* means, const T* sh, const T* campos, T* colors) {
   const int K = (degree + 1) * (degree + 1);
   for (size_t i = 0; i < n; ++i) {
@@ -116,6 +121,8 @@ void sh_bwd_ref(size_t n, int32_t degree, const T* means, const T* sh, const T* 
   }
 }
 
+template void sh_basis_ref<float>(int32_t, const float*, float*);
+template void sh_basis_ref<double>(int32_t, const double*, double*);
 template void sh_fwd_ref<float>(size_t, int32_t, const float*, const float*, const float*, float*);
 template void sh_fwd_ref<double>(size_t, int32_t, const double*, const double*, const double*, double*);
 template void sh_bwd_ref<float>(size_t, int32_t, const float*, const float*, const float*, const float*, float*,

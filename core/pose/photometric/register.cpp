@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "pose_solve.h"
+#include "../../model/cloud_decode.h"
 #include "../../model/float_backend.h"
 #include "gs/io/image.h"
 #include "gs/model/step_graph.h"
@@ -45,10 +46,22 @@ Camera decode_camera(const Camera& cam) {
   return c;
 }
 
+Status check_plan(int max_width, int max_height, const RegisterOptions& options) {
+  if (max_width < 1 || max_height < 1 || max_width > 16384 || max_height > 16384)
+    return invalid_argument("registration: image size " + std::to_string(max_width) + "x" + std::to_string(max_height) +
+                            " out of range");
+  if (options.finest_downscale < 1 || options.max_levels < 1 || options.max_iterations_per_level < 1 ||
+      options.adam_iterations_per_level < 1 || options.min_coarse_width < 1)
+    return invalid_argument("registration: downscale, levels and iteration caps must be positive");
+  return Status::Ok();
+}
+
 }  // namespace
 
 struct Registrar::Impl {
-  const model::HybridModel* model = nullptr;
+  const model::HybridModel* model = nullptr;  // the anchor model, or
+  const GaussianCloud* cloud = nullptr;       // plain Gaussians (decoded by cloud_decoder)
+  model::detail::CloudDecoder cloud_decoder;
   RegisterOptions opt;
   platform::ThreadPool* pool = nullptr;
   const simd::KernelTable* kernels = nullptr;
@@ -110,12 +123,13 @@ struct Registrar::Impl {
   }
 
   size_t decode_uncached(const Camera& cam) {
+    if (cloud) return cloud_decoder.decode(*cloud, decode_camera(cam));
     size_t V = 0;
     return model::decode_view(backend, model::detail::model_params(*model), decode_camera(cam), ws, &V);
   }
 
   // The Gaussians of the last decode, as the renderer takes them.
-  GaussianParams gaussians() const { return model::detail::gaussian_params(ws.ng); }
+  GaussianParams gaussians() const { return cloud ? cloud_decoder.params() : model::detail::gaussian_params(ws.ng); }
 
   Status render(const Camera& cam) {
     const GaussianParams gp = gaussians();
@@ -588,12 +602,7 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const model::HybridModel&
                                                        const simd::KernelTable* kernels, size_t plan_anchor_rows) {
   GS_RETURN_IF_ERROR(model.config.validate());
   if (model.anchor_count == 0) return invalid_argument("registration: the model has no anchors");
-  if (max_width < 1 || max_height < 1 || max_width > 16384 || max_height > 16384)
-    return invalid_argument("registration: image size " + std::to_string(max_width) + "x" + std::to_string(max_height) +
-                            " out of range");
-  if (options.finest_downscale < 1 || options.max_levels < 1 || options.max_iterations_per_level < 1 ||
-      options.adam_iterations_per_level < 1 || options.min_coarse_width < 1)
-    return invalid_argument("registration: downscale, levels and iteration caps must be positive");
+  GS_RETURN_IF_ERROR(check_plan(max_width, max_height, options));
   std::unique_ptr<Registrar> r(new Registrar());
   Impl& d = *r->impl_;
   d.model = &model;
@@ -614,6 +623,29 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const model::HybridModel&
   return r;
 }
 
+Expected<std::unique_ptr<Registrar>> Registrar::create(const GaussianCloud& cloud, float scene_extent, int max_width,
+                                                       int max_height, const RegisterOptions& options,
+                                                       platform::ThreadPool* pool, const simd::KernelTable* kernels) {
+  if (cloud.size() == 0) return invalid_argument("registration: the cloud has no Gaussians");
+  if (!(scene_extent > 0) || !std::isfinite(scene_extent)) return invalid_argument("registration: the scene extent must be positive");
+  GS_RETURN_IF_ERROR(check_plan(max_width, max_height, options));
+  std::unique_ptr<Registrar> r(new Registrar());
+  Impl& d = *r->impl_;
+  d.cloud = &cloud;
+  d.opt = options;
+  d.pool = pool;
+  d.kernels = kernels ? kernels : &simd::best_kernel_table();
+  d.max_w = max_width;
+  d.max_h = max_height;
+  d.extent = scene_extent;
+  const RenderCapacity rc = model::detail::cloud_render_capacity(cloud.size(), max_width, max_height);
+  GS_RETURN_IF_ERROR(d.renderer.init(rc, pool, d.kernels));
+  d.cloud_decoder.reserve(cloud.size(), cloud.sh_degree);
+  d.allocate_images();
+  d.bytes = Renderer::plan_bytes(rc) + d.image_bytes() + d.cloud_decoder.bytes();
+  return r;
+}
+
 const RegisterOptions& Registrar::options() const { return impl_->opt; }
 RegisterOptions& Registrar::mutable_options() { return impl_->opt; }
 uint64_t Registrar::planned_bytes() const { return impl_->bytes; }
@@ -624,8 +656,10 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
   if (intr.width > d.max_w || intr.height > d.max_h)
     return capacity_exceeded("registration: a " + std::to_string(intr.width) + "x" + std::to_string(intr.height) +
                              " image is larger than the planned " + std::to_string(d.max_w) + "x" + std::to_string(d.max_h));
-  if (d.model->anchor_count > d.planned_rows)
+  if (d.model && d.model->anchor_count > d.planned_rows)
     return capacity_exceeded("registration: the model has more anchors than planned");
+  if (d.cloud && d.cloud->size() > d.cloud_decoder.capacity())
+    return capacity_exceeded("registration: the cloud has more Gaussians than planned");
   const Camera full{intr, init};
   if (Status st = validate_camera(full); !st.ok()) return invalid_argument("registration: start pose or camera: " + st.message());
   const RegisterOptions& o = d.opt;

@@ -198,6 +198,11 @@ void raster_pose_jacobian_tile_ref(const RasterParamsT<T>* p, int32_t tile_x, in
                                    // tangent outputs
                                    T* out_jacobian);         // [H, W, 3, 6] d rgb / d xi
 
+// The real SH basis values b[0 .. (degree + 1)^2) for a unit direction (3DGS constants and signs):
+// what sh_fwd_ref sums its coefficients against (fitting SH colours needs the basis itself).
+template <class T>
+void sh_basis_ref(int32_t degree, const T dir[3], T b[16]);
+
 // Colour from spherical harmonics (3DGS convention: value + 0.5, clamped at 0 from below).
 // sh [n, K, 3] with K = (degree + 1)^2; campos = camera centre in world coordinates.
 template <class T>

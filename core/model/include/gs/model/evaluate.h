@@ -53,6 +53,9 @@ Expected<std::vector<std::string>> render_png_paths(const std::string& dir, cons
 
 Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<const io::DatasetView*>& views,
                                     const EvalOptions& options, platform::ThreadPool* pool);
+// The same for plain Gaussians (a baked model or a 3DGS scene; int8_mlp does not apply).
+Expected<EvalResult> evaluate_views(const GaussianCloud& cloud, const std::vector<const io::DatasetView*>& views,
+                                    const EvalOptions& options, platform::ThreadPool* pool);
 
 // 3DGS schema: results.json = {"<method>": {"SSIM": s, "PSNR": p, "LPIPS": l}} and
 // per_view.json = {"<method>": {"SSIM": {name: s}, "PSNR": {...}, "LPIPS": {...}}}; LPIPS keys are

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "gs/gaussians.h"
 #include "gs/io/colmap.h"
 #include "gs/model/background.h"
 #include "gs/model/hybrid_model.h"
@@ -155,9 +156,15 @@ class ModelRenderer {
   // Plans for the model's capacity and images up to max_width x max_height.
   Status init(const HybridModel& model, int max_width, int max_height, platform::ThreadPool* pool,
               const simd::KernelTable* kernels = nullptr);
+  // Plans for plain Gaussians instead (a baked model or a 3DGS scene read from a file): render()
+  // with the cloud then draws the Gaussians in view with their SH colours for the camera.
+  Status init(const GaussianCloud& cloud, int max_width, int max_height, platform::ThreadPool* pool,
+              const simd::KernelTable* kernels = nullptr);
   // rgb: [H, W, 3] floats (not clamped). gaussians: kept neural Gaussians of this view (optional).
   // alpha [H, W] (optional): the render's opacity, 1 - final transmittance.
   Status render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians = nullptr,
+                float* alpha = nullptr);
+  Status render(const GaussianCloud& cloud, const Camera& camera, float* rgb, size_t* gaussians = nullptr,
                 float* alpha = nullptr);
   // Wall time of the last render's two stages, ms: decoding the anchors (MLPs) and the Gaussian
   // renderer's forward (projection, binning, sorting, blending).

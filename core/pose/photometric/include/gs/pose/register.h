@@ -29,6 +29,7 @@
 #include <memory>
 
 #include "gs/camera.h"
+#include "gs/gaussians.h"
 #include "gs/model/hybrid_model.h"
 #include "gs/status.h"
 
@@ -117,6 +118,14 @@ class Registrar {
                                                      const RegisterOptions& options, platform::ThreadPool* pool,
                                                      const simd::KernelTable* kernels = nullptr,
                                                      size_t plan_anchor_rows = 0);
+  // The same against plain Gaussians (a baked model, or a 3DGS scene read from a PLY, .splat or .spz
+  // file): their SH colours are evaluated where the anchor model would be decoded. scene_extent
+  // (world units) scales the translation steps and limits, as HybridModel::scene_extent does (e.g.
+  // model::cameras_extent of the training cameras).
+  static Expected<std::unique_ptr<Registrar>> create(const GaussianCloud& cloud, float scene_extent, int max_width,
+                                                     int max_height, const RegisterOptions& options,
+                                                     platform::ThreadPool* pool,
+                                                     const simd::KernelTable* kernels = nullptr);
   ~Registrar();
 
   // Registers one RGB image [H, W, 3] (8-bit) seen by a camera with intrinsics intr (full
