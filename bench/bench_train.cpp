@@ -74,6 +74,7 @@ int run(int argc, char** argv) {
   std::vector<float> losses;
   std::vector<double> ms;
   double gaussians = 0, anchors = 0;
+  size_t max_gaussians = 0, max_isects = 0;  // per iteration (what the renderer's plan must hold)
   double cpu0 = process_cpu_seconds();
   for (int i = 0; i < warmup + iterations; ++i) {
     if (i == warmup) cpu0 = process_cpu_seconds();
@@ -84,6 +85,8 @@ int run(int argc, char** argv) {
     if (i < warmup) continue;
     ms.push_back(double(platform::now_ns() - t0) * 1e-6);
     gaussians += double(st.step.gaussians);
+    max_gaussians = std::max(max_gaussians, st.step.gaussians);
+    max_isects = std::max(max_isects, st.isects);
     anchors = double(st.anchors);
   }
   const double cpu_ms = (process_cpu_seconds() - cpu0) * 1e3 / double(iterations);
@@ -98,8 +101,9 @@ int run(int argc, char** argv) {
               iterations);
   std::printf("  iteration ms: median %.2f, mean %.2f, p90 %.2f, min %.2f, max %.2f (CPU %.2f ms per iteration)\n",
               t.median_ms, t.mean_ms, p90, t.min_ms, t.max_ms, cpu_ms);
-  std::printf("  anchors %.0f at the end, %.0f neural Gaussians per iteration on average\n", anchors,
-              gaussians / double(iterations));
+  std::printf("  anchors %.0f at the end (rows %zu), %.0f neural Gaussians per iteration on average, at most %zu; at most "
+              "%zu Gaussian-tile pairs\n",
+              anchors, trainer.model().capacity(), gaussians / double(iterations), max_gaussians, max_isects);
   if (!json_path.empty()) {
     nlohmann::json j = {{"dataset", dataset},
                         {"views", views.size()},
@@ -118,6 +122,9 @@ int run(int argc, char** argv) {
                         {"cpu_ms_per_iteration", cpu_ms},
                         {"anchors", anchors},
                         {"mean_gaussians", gaussians / double(iterations)},
+                        {"max_gaussians", max_gaussians},
+                        {"max_isects", max_isects},
+                        {"rows", trainer.model().capacity()},
                         {"cpu_model", mi.cpu_model},
                         {"load_average", load_average()},
                         {"seed", o.seed},

@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: MIT
 # Peak resident memory of the on-device path and of training, measured with /usr/bin/time -v:
 #   scripts/measure-memory.sh [DATASET] [OUT]   (default ../shared/data/snowmiku_plush, out/memory)
-# Trains DATASET to 1,000 iterations with hbgs (the peak of the whole run), makes the compact model
+# Trains DATASET to 1,000 iterations with hbgs-device (the peak of the whole run), makes the compact model
 # file, then renders, registers (1/4 resolution, fixed point, from 10 deg / 10 %) and evaluates its
 # test views with hbgs-device (the on-device commands, linked without FFmpeg / libcamera / Embree).
 # Prints a table (MiB) and writes OUT/memory.csv. About 1 minute on 2 cores.
@@ -37,7 +37,7 @@ measure() {  # name command...
   awk -v n="$name" -v kb="$kb" -v s="$secs" 'BEGIN { printf "%s,%.1f,%s\n", n, kb / 1024, s }' >>"$csv"
 }
 
-measure train "$hbgs" train "$dataset" --out "$out/run" --iterations 1000 --threads "$threads" --quiet --force
+measure train "$dev" train "$dataset" --out "$out/run" --iterations 1000 --threads "$threads" --quiet --force
 measure compact "$hbgs" compact "$out/run" --out "$out/run/model.hbgc" --threads "$threads" --no-eval
 measure render "$dev" render "$out/run/model.hbgc" --dataset "$dataset" --split test --out "$out/render" --fixed-point --threads "$threads" --quiet
 measure register "$dev" register "$out/run/model.hbgc" --dataset "$dataset" --views test --downscale 4 --fixed-point \

@@ -38,11 +38,12 @@ int main(int argc, char** argv) {
   app.fallthrough(false);
 
 #ifdef HBGS_DEVICE
-  // hbgs-device: the on-device subset (no training, capture or video), linked without FFmpeg,
-  // libcamera and Embree, so its footprint is the library's.
+  // hbgs-device: the on-device subset (training, evaluation, rendering, registration, compact
+  // files, export; no capture, video or synthetic scenes), linked without FFmpeg, libcamera and
+  // Embree, so its footprint is the library's.
   const hbgs::cli::Command commands[] = {
-      hbgs::cli::add_eval_command(app), hbgs::cli::add_render_command(app), hbgs::cli::add_register_command(app),
-      hbgs::cli::add_compact_command(app),
+      hbgs::cli::add_train_command(app),    hbgs::cli::add_eval_command(app),    hbgs::cli::add_render_command(app),
+      hbgs::cli::add_register_command(app), hbgs::cli::add_compact_command(app),
   };
 #else
   const hbgs::cli::Command commands[] = {

@@ -112,11 +112,12 @@ Expected<std::vector<std::string>> render_png_paths(const std::string& dir, cons
 
 namespace {
 
-// The evaluation of either scene type: Scene is a HybridModel or a GaussianCloud, both of which
-// ModelRenderer plans for and renders.
-template <class Scene>
-Expected<EvalResult> evaluate_scene(const Scene& model, const std::vector<const io::DatasetView*>& views,
-                                    const EvalOptions& options, platform::ThreadPool* pool) {
+// The evaluation itself. Render(camera, rgb, gaussians, alpha) draws a view; plan(max_w, max_h)
+// prepares it for the largest view (a ModelRenderer over a model or a cloud, or a trainer's own
+// pipeline).
+template <class Plan, class Render>
+Expected<EvalResult> evaluate_with(const std::vector<const io::DatasetView*>& views, const EvalOptions& options, Plan&& plan,
+                                   Render&& render) {
   if (views.empty()) return invalid_argument("evaluation: no views to evaluate");
   int max_w = 0, max_h = 0;
   for (const io::DatasetView* v : views) {
@@ -144,9 +145,7 @@ Expected<EvalResult> evaluate_scene(const Scene& model, const std::vector<const 
   for (const io::DatasetView* v : views)
     small = small || v->camera.intr.width < metrics::LpipsAlex::kMinSide || v->camera.intr.height < metrics::LpipsAlex::kMinSide;
   const metrics::LpipsAlex* lpips = small ? nullptr : options.lpips;
-  ModelRenderer renderer;
-  GS_RETURN_IF_ERROR(renderer.set_options(options.render));
-  GS_RETURN_IF_ERROR(renderer.init(model, max_w, max_h, pool));
+  GS_RETURN_IF_ERROR(plan(max_w, max_h));
   std::vector<float> rgb(size_t(max_w) * size_t(max_h) * 3), alpha(size_t(max_w) * size_t(max_h));
   EvalResult result;
   result.views.reserve(views.size());
@@ -155,7 +154,7 @@ Expected<EvalResult> evaluate_scene(const Scene& model, const std::vector<const 
     ViewMetrics m;
     m.name = v->name;
     const double t0 = platform::now_seconds();
-    GS_RETURN_IF_ERROR(renderer.render(model, v->camera, rgb.data(), &m.gaussians, alpha.data()));
+    GS_RETURN_IF_ERROR(render(v->camera, rgb.data(), &m.gaussians, alpha.data()));
     m.render_ms = 1e3 * (platform::now_seconds() - t0);
     render_ms.push_back(m.render_ms);
     const int w = v->camera.intr.width, h = v->camera.intr.height;
@@ -190,6 +189,20 @@ Expected<EvalResult> evaluate_scene(const Scene& model, const std::vector<const 
   return result;
 }
 
+// A model or a cloud through a ModelRenderer of its own.
+template <class Scene>
+Expected<EvalResult> evaluate_scene(const Scene& scene, const std::vector<const io::DatasetView*>& views,
+                                    const EvalOptions& options, platform::ThreadPool* pool) {
+  ModelRenderer renderer;
+  return evaluate_with(
+      views, options,
+      [&](int w, int h) {
+        GS_RETURN_IF_ERROR(renderer.set_options(options.render));
+        return renderer.init(scene, w, h, pool);
+      },
+      [&](const Camera& cam, float* rgb, size_t* n, float* alpha) { return renderer.render(scene, cam, rgb, n, alpha); });
+}
+
 }  // namespace
 
 Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<const io::DatasetView*>& views,
@@ -200,6 +213,19 @@ Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<
 Expected<EvalResult> evaluate_views(const GaussianCloud& cloud, const std::vector<const io::DatasetView*>& views,
                                     const EvalOptions& options, platform::ThreadPool* pool) {
   return evaluate_scene(cloud, views, options, pool);
+}
+
+Expected<EvalResult> evaluate_views(Trainer& trainer, const std::vector<const io::DatasetView*>& views,
+                                    const EvalOptions& options, platform::ThreadPool* pool) {
+  int max_w = 0, max_h = 0;
+  for (const io::DatasetView* v : views) max_w = std::max(max_w, v->camera.intr.width), max_h = std::max(max_h, v->camera.intr.height);
+  if (options.render.fixed_point_raster || options.render.int8_mlp || !trainer.can_render(max_w, max_h))
+    return evaluate_scene(trainer.model(), views, options, pool);
+  return evaluate_with(
+      views, options, [](int, int) { return Status::Ok(); },
+      [&](const Camera& cam, float* rgb, size_t* n, float* alpha) {
+        return trainer.render(cam, options.render.background, rgb, n, alpha);
+      });
 }
 
 std::string results_json(const EvalResult& r, const std::string& method, const std::string& extra_json_members) {

@@ -231,18 +231,21 @@ class FloatBackend {
 };
 
 // Plans what rendering a model takes, for `rows` anchor rows and images up to max_width x
-// max_height: the renderer (k Gaussians per row, 8 tile pairs each before a re-plan), the float
+// max_height: the renderer (k Gaussians per row, isects_per_gaussian tile pairs each: callers that
+// render through FloatBackend::render_params, which re-plans with headroom when a view needs more,
+// plan for what views use (training snowmiku_plush: at most 1.5 per row x k); callers that cannot
+// re-plan keep 8), the float
 // backend and a step workspace whose image buffers are ws_width x ws_height. Returns the renderer's
 // capacity (for the byte count).
 inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, size_t rows, int max_width, int max_height,
                                                     int ws_width, int ws_height, platform::ThreadPool* pool,
                                                     const simd::KernelTable* kernels, Renderer* renderer,
                                                     FloatBackend* backend, StepWorkspace<float>* ws,
-                                                    bool training = true) {
+                                                    bool training = true, size_t isects_per_gaussian = 8) {
   const size_t K = size_t(model.config.k);
   RenderCapacity rc;
   rc.max_gaussians = rows * K;
-  rc.max_isects = rows * K * 8;
+  rc.max_isects = rows * K * isects_per_gaussian;
   rc.max_width = max_width;
   rc.max_height = max_height;
   rc.max_sh_degree = 0;

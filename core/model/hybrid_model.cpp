@@ -81,7 +81,7 @@ Status ModelConfig::validate() const {
 
 uint64_t HybridModel::file_bytes() const { return uint64_t(serialize_model(*this).size()); }
 
-// Rows for `cap` anchors: 1.25 x the initial anchors when creating (the trainer grows them), the
+// Rows for `cap` anchors: the initial anchors when creating (the trainer grows them), the
 // stored count when loading (a file that declares a 50-million-anchor budget but holds 100 anchors
 // gets 100 rows).
 static void allocate_rows(HybridModel* m, size_t cap) {
@@ -115,9 +115,10 @@ Expected<HybridModel> create_model(const ModelConfig& config, const float* xyz, 
     return capacity_exceeded("model: voxel size " + std::to_string(anchors->voxel_size) + " gives " + std::to_string(M) +
                              " anchors, more than the budget of " + std::to_string(config.anchor_capacity()) +
                              " (raise --max-anchors / --max-gaussians or the voxel size)");
-  // Rows for the initial anchors and a quarter more (at least 1,024), within the budget: the
-  // trainer grows them as densification adds anchors, so memory follows the scene, not the budget.
-  allocate_rows(&m, std::min(config.anchor_capacity(), std::max<size_t>(M + M / 4, 1024)));
+  // Rows for the initial anchors (at least 1,024), within the budget: the trainer grows them by half
+  // again when densification adds anchors, so memory follows the scene, not the budget (headroom
+  // here would be memory no step uses before the first densification).
+  allocate_rows(&m, std::min(config.anchor_capacity(), std::max<size_t>(M, 1024)));
   m.anchor_count = M;
   m.voxel_size = anchors->voxel_size;
   m.scene_extent = scene_extent;

@@ -31,6 +31,11 @@ namespace {
 
 constexpr char kCheckpointMagic[8] = {'H', 'B', 'G', 'S', 'C', 'K', 'P', 'T'};
 constexpr uint32_t kCheckpointVersion = 2;  // 2: training poses and their Adam state
+// Tile pairs planned per Gaussian of capacity where the renderer is used through
+// FloatBackend::render_params (it re-plans with 1.5x headroom when a view needs more): training
+// snowmiku_plush at 393 px used at most 1.5 (130k pairs for 88k Gaussians of capacity); 8 cost
+// 85 MB of arena per renderer for nothing.
+constexpr size_t kReplannedIsectsPerGaussian = 3;
 
 // One optimised tensor: parameters (owned by the model), gradient and Adam moments. Per-anchor
 // groups hold row_floats values per anchor and are stepped over the live rows only.
@@ -138,7 +143,8 @@ struct Trainer::Impl {
   Status plan(const TrainOptions& options) {
     const size_t c = cap(), K = size_t(k());
     Expected<RenderCapacity> rc = detail::plan_model_pipeline(model, c, plan_w, plan_h, plan_w, plan_h, pool, kernels,
-                                                              &renderer, &backend, &ws);
+                                                              &renderer, &backend, &ws, /*training=*/true,
+                                                              kReplannedIsectsPerGaussian);
     if (!rc.ok()) return rc.status();
     opacity_accum.resize(c, 0.0f);
     anchor_seen.resize(c, 0);
@@ -621,6 +627,30 @@ const HybridModel& Trainer::model() const { return impl_->model; }
 const TrainOptions& Trainer::options() const { return impl_->opt; }
 uint64_t Trainer::planned_bytes() const { return impl_->planned_bytes; }
 
+bool Trainer::can_render(int width, int height) const {
+  return width >= 1 && height >= 1 && size_t(width) * size_t(height) * 3 <= impl_->ws.rgb.size() &&
+         width <= impl_->renderer.capacity().max_width && height <= impl_->renderer.capacity().max_height;
+}
+
+Status Trainer::render(const Camera& camera, const float background[3], float* rgb, size_t* gaussians, float* alpha) {
+  Impl& d = *impl_;
+  GS_RETURN_IF_ERROR(validate_camera(camera));
+  if (!can_render(camera.intr.width, camera.intr.height))
+    return capacity_exceeded("trainer: a " + std::to_string(camera.intr.width) + "x" + std::to_string(camera.intr.height) +
+                             " render is larger than the training views");
+  for (int c = 0; c < 3; ++c) d.backend.background[c] = background[c];  // step() sets its own again
+  size_t V = 0;
+  const size_t n = decode_view(d.backend, d.params(), camera, d.ws, &V);
+  if (gaussians) *gaussians = n;
+  GS_RETURN_IF_ERROR(d.backend.render_fwd(camera, d.ws.ng, rgb));
+  if (alpha) {
+    const size_t px = size_t(camera.intr.width) * size_t(camera.intr.height);
+    const float* T = d.renderer.final_transmittance();
+    for (size_t i = 0; i < px; ++i) alpha[i] = 1.0f - T[i];
+  }
+  return Status::Ok();
+}
+
 Status Trainer::save_checkpoint(const std::string& path) const {
   const Impl& d = *impl_;
   if (Status st = check_model_finite(d.model, path); !st.ok()) return Status(st.code(), "refusing to write " + st.message());
@@ -798,7 +828,7 @@ Status ModelRenderer::init(const HybridModel& model, int max_width, int max_heig
   const size_t cap = std::max<size_t>(model.anchor_count, 1);
   Expected<RenderCapacity> rc = detail::plan_model_pipeline(model, cap, max_width, max_height, max_width, max_height, pool,
                                                             kt, &impl_->renderer, &impl_->backend, &impl_->ws,
-                                                            /*training=*/false);
+                                                            /*training=*/false, kReplannedIsectsPerGaussian);
   if (!rc.ok()) return rc.status();
   impl_->capacity = cap;
   impl_->backend.fixed_point_raster = impl_->options.fixed_point_raster;

@@ -600,7 +600,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     model::EvalOptions quick;
     quick.psnr_only = true;
     std::copy(trainer.options().background.rgb, trainer.options().background.rgb + 3, quick.render.background);
-    Expected<model::EvalResult> r = model::evaluate_views(trainer.model(), d.test_views, quick, &pool);
+    Expected<model::EvalResult> r = model::evaluate_views(trainer, d.test_views, quick, &pool);
     if (!r.ok()) return r.status();
     add_psnr_row(it, r->psnr);
     return Status::Ok();
@@ -615,7 +615,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     eo.lpips = net;
     std::copy(trainer.options().background.rgb, trainer.options().background.rgb + 3, eo.render.background);
     eo.render_dir = (fs::path(a.out) / "test" / method / "renders").string();
-    Expected<model::EvalResult> r = model::evaluate_views(m, d.test_views, eo, &pool);
+    Expected<model::EvalResult> r = model::evaluate_views(trainer, d.test_views, eo, &pool);
     if (!r.ok()) return r.status();
     double gaussians = 0;
     for (const model::ViewMetrics& v : r->views) gaussians += double(v.gaussians);

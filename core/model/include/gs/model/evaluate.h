@@ -53,6 +53,11 @@ Expected<std::vector<std::string>> render_png_paths(const std::string& dir, cons
 
 Expected<EvalResult> evaluate_views(const HybridModel& model, const std::vector<const io::DatasetView*>& views,
                                     const EvalOptions& options, platform::ThreadPool* pool);
+// The same with a trainer's own pipeline (its current model, forward only, float): no second
+// renderer and workspace during training. Views larger than the training views, fixed point and
+// int8 fall back to a ModelRenderer of the trainer's model (on pool).
+Expected<EvalResult> evaluate_views(Trainer& trainer, const std::vector<const io::DatasetView*>& views,
+                                    const EvalOptions& options, platform::ThreadPool* pool);
 // The same for plain Gaussians (a baked model or a 3DGS scene; int8_mlp does not apply).
 Expected<EvalResult> evaluate_views(const GaussianCloud& cloud, const std::vector<const io::DatasetView*>& views,
                                     const EvalOptions& options, platform::ThreadPool* pool);

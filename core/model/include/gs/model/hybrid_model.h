@@ -4,7 +4,7 @@
 // MLPs that decode neural Gaussians per view. Also its versioned binary file format.
 //
 // Memory: every per-anchor array has capacity() rows, rows [0, anchor_count) live. capacity()
-// follows the scene: create_model allocates 1.25 x the initial anchors, the trainer grows the rows
+// follows the scene: create_model allocates rows for the initial anchors, the trainer grows the rows
 // (by half again, at densification steps only) up to the hard budget config.anchor_capacity().
 #pragma once
 

@@ -126,6 +126,13 @@ class Trainer {
   // Bytes allocated at create() (model capacity, optimiser, workspace, renderer arena).
   uint64_t planned_bytes() const;
 
+  // Renders the current model for a camera with the trainer's own pipeline (forward only; the next
+  // step() is unaffected): evaluation during training without a second renderer. rgb [H, W, 3];
+  // gaussians and alpha [H, W] optional. Fails when the image is larger than the training views.
+  Status render(const Camera& camera, const float background[3], float* rgb, size_t* gaussians = nullptr,
+                float* alpha = nullptr);
+  bool can_render(int width, int height) const;
+
  private:
   Trainer();
   struct Impl;
