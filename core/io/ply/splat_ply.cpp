@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "../io_util.h"
+#include "../splat/splat_common.h"
 #include "gs/io/ply.h"
 #include "gs/platform/file.h"
 
@@ -149,6 +150,7 @@ Expected<GaussianCloud> parse(const uint8_t* data, size_t size, const std::strin
     for (size_t c = 0; c < 3; ++c)
       for (size_t k = 1; k < K; ++k) cloud.sh[(n * K + k) * 3 + c] = f(rest[c * R + (k - 1)]);
   }
+  GS_RETURN_IF_ERROR(detail::check_cloud_finite(cloud, src));
   return cloud;
 }
 
