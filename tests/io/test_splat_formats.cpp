@@ -144,7 +144,7 @@ TEST_CASE(".splat round trip: float32 position and scale; 8-bit colour and alpha
     CHECK(e.log_scale <= 1e-6);                        // log(exp(s)) in float32
     CHECK(e.opacity <= 0.5 / 255 + 1e-7);              // half an 8-bit step
     CHECK(e.colour <= 0.5 / 255 + 1e-7);               // half a step while 0 <= colour <= 1
-    CHECK(e.rotation_deg <= 0.91);                     // components to 1/256: 2 asin(1/127) = 0.90 deg
+    CHECK(e.rotation_deg <= 0.91);                     // components to 1/256: 2 asin(2/256) = 0.90 deg
   }
 }
 
