@@ -91,12 +91,25 @@ Status parse_ply_header(const uint8_t* data, size_t size, const std::string& src
       if (out->elements.empty()) return parse_error(at + "property before any element");
       PlyElement& e = out->elements.back();
       std::string type, name;
-      ls >> type >> name;
-      if (type == "list") return unsupported(at + "list property in element '" + e.name + "'");
+      ls >> type;
       PlyProperty p;
+      p.spelled = type;
+      if (type == "list") {  // list <count type> <item type> <name>: records of variable size
+        std::string count_type, item_type, canonical;
+        size_t count_bytes = 0, item_bytes = 0;
+        ls >> count_type >> item_type >> name;
+        scalar_type(count_type, &canonical, &count_bytes);
+        scalar_type(item_type, &canonical, &item_bytes);
+        if (count_bytes == 0 || item_bytes == 0)
+          return parse_error(at + "list property with unknown types '" + count_type + "' '" + item_type + "'");
+        p.type = "list";
+        e.has_list = true;
+      } else {
+        ls >> name;
+        scalar_type(type, &p.type, &p.bytes);
+        if (p.bytes == 0) return parse_error(at + "unknown property type '" + type + "'");
+      }
       p.name = name;
-      scalar_type(type, &p.type, &p.bytes);
-      if (p.bytes == 0) return parse_error(at + "unknown property type '" + type + "'");
       if (name.empty()) return parse_error(at + "property without a name");
       if (e.find(name)) return parse_error(at + "duplicate property '" + name + "' in element '" + e.name + "'");
       if (e.properties.size() >= 1024) return unsupported(at + "more than 1024 properties in element '" + e.name + "'");

@@ -63,11 +63,7 @@ Expected<GaussianCloud> parse_antimatter_splat(const uint8_t* data, size_t size,
 }
 
 Expected<GaussianCloud> read_antimatter_splat(const std::string& path) {
-  return detail::guarded(path, [&]() -> Expected<GaussianCloud> {
-    auto bytes = platform::read_file(path, uint64_t(1) << 36);
-    if (!bytes.ok()) return bytes.status();
-    return parse(bytes->data(), bytes->size(), path);
-  });
+  return detail::read_and_parse(path, parse);
 }
 
 Expected<std::vector<uint8_t>> encode_antimatter_splat(const GaussianCloud& cloud) {

@@ -325,11 +325,7 @@ Expected<GaussianCloud> parse_compressed_ply(const uint8_t* data, size_t size, c
 }
 
 Expected<GaussianCloud> read_compressed_ply(const std::string& path) {
-  return detail::guarded(path, [&]() -> Expected<GaussianCloud> {
-    auto bytes = platform::read_file(path, uint64_t(1) << 36);
-    if (!bytes.ok()) return bytes.status();
-    return parse(bytes->data(), bytes->size(), path);
-  });
+  return detail::read_and_parse(path, parse);
 }
 
 Expected<std::vector<uint8_t>> encode_compressed_ply(const GaussianCloud& cloud, std::vector<uint32_t>* order) {

@@ -83,10 +83,8 @@ Expected<GaussianCloud> parse_gaussians(const uint8_t* data, size_t size, const 
 }
 
 Expected<GaussianCloud> read_gaussians(const std::string& path, SplatFormat* format) {
-  return detail::guarded(path, [&]() -> Expected<GaussianCloud> {
-    auto bytes = platform::read_file(path, uint64_t(1) << 36);
-    if (!bytes.ok()) return bytes.status();
-    return parse_gaussians(bytes->data(), bytes->size(), path, format);
+  return detail::read_and_parse(path, [&](const uint8_t* data, size_t size, const std::string& source) {
+    return parse_gaussians(data, size, source, format);
   });
 }
 

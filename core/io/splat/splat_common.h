@@ -9,7 +9,9 @@
 #include <cstdint>
 #include <string>
 
+#include "../io_util.h"
 #include "gs/gaussians.h"
+#include "gs/platform/file.h"
 #include "gs/status.h"
 
 namespace gs::io::detail {
@@ -58,5 +60,16 @@ Status check_cloud_fits(uint64_t n, int sh_degree, const std::string& source);
 
 // Every value of a cloud just read is finite; the message names the source, splat and field.
 Status check_cloud_finite(const GaussianCloud& cloud, const std::string& source);
+
+// A whole splat file read and given to parse(data, size, path); exceptions become a Status.
+// 64 GiB at most: the largest count any reader accepts times the widest record fits below it.
+template <class Parse>
+Expected<GaussianCloud> read_and_parse(const std::string& path, Parse&& parse) {
+  return guarded(path, [&]() -> Expected<GaussianCloud> {
+    auto bytes = platform::read_file(path, uint64_t(1) << 36);
+    if (!bytes.ok()) return bytes.status();
+    return parse(bytes->data(), bytes->size(), path);
+  });
+}
 
 }  // namespace gs::io::detail

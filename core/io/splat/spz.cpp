@@ -401,11 +401,7 @@ Expected<GaussianCloud> parse_spz(const uint8_t* data, size_t size, const std::s
 }
 
 Expected<GaussianCloud> read_spz(const std::string& path) {
-  return detail::guarded(path, [&]() -> Expected<GaussianCloud> {
-    auto bytes = platform::read_file(path, uint64_t(1) << 36);
-    if (!bytes.ok()) return bytes.status();
-    return parse_spz(bytes->data(), bytes->size(), path);
-  });
+  return detail::read_and_parse(path, parse_spz);
 }
 
 Expected<std::vector<uint8_t>> encode_spz(const GaussianCloud& cloud, const SpzWriteOptions& options) {
