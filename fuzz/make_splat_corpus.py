@@ -42,13 +42,16 @@ def spz(version, degree, n):
     else:
         body += bytes([128, 128, 128] * n)
     body += bytes([128 + (k % 7) * 8 for k in range(dim * 3)]) * n  # SH
-    head = struct.pack("<IIIBBBB", 0x5053474E, version, n, degree, 12, 0, 0)
-    return gzip.compress(head + body, mtime=0)
+    return struct.pack("<IIIBBBB", 0x5053474E, version, n, degree, 12, 0, 0) + body
 
 
-write("spz", "v3_sh0.spz", spz(3, 0, 3))
-write("spz", "v3_sh1.spz", spz(3, 1, 2))
-write("spz", "v2_sh2.spz", spz(2, 2, 2))
+# The harness reads the first byte: even = the rest is the file, odd = the rest is the decompressed
+# stream (the harness gzips it).
+write("spz", "v3_sh0.spz", b"\x00" + gzip.compress(spz(3, 0, 3), mtime=0))
+write("spz", "v3_sh1.spz", b"\x00" + gzip.compress(spz(3, 1, 2), mtime=0))
+write("spz", "v2_sh2.spz", b"\x00" + gzip.compress(spz(2, 2, 2), mtime=0))
+write("spz", "raw_v3_sh3.bin", b"\x01" + spz(3, 3, 2))
+write("spz", "raw_v2_sh1.bin", b"\x01" + spz(2, 1, 3))
 
 
 # PlayCanvas compressed.ply: chunk bounds, packed vertices, optional SH bytes. The harness reads

@@ -511,15 +511,25 @@ TEST_CASE("the fuzz seed corpora of the splat formats are valid files") {
       std::vector<uint8_t> b = test::read_bytes(entry.path().string());
       REQUIRE_FALSE(b.empty());
       const std::string name = entry.path().filename().string();
+      // spz and compressed_ply seeds start with the harness's selector byte; an odd one before a
+      // .spz means the rest is the decompressed stream.
+      if (std::string(harness) == "spz" && (b[0] & 1)) {
+#if GS_TEST_HAVE_ZLIB
+        b = gzip(std::vector<uint8_t>(b.begin() + 1, b.end()));
+        b.insert(b.begin(), 0);
+#else
+        continue;
+#endif
+      }
       Expected<GaussianCloud> r = std::string(harness) == "splat" ? parse_antimatter_splat(b.data(), b.size(), name)
-                                  : std::string(harness) == "spz" ? parse_spz(b.data(), b.size(), name)
+                                  : std::string(harness) == "spz" ? parse_spz(b.data() + 1, b.size() - 1, name)
                                                                   : parse_gaussians(b.data() + 1, b.size() - 1, name);
       CHECK_MESSAGE(r.ok(), r.status().to_string());
       if (r.ok()) CHECK(r->size() > 0);
       ++files;
     }
   }
-  CHECK(files >= 6);
+  CHECK(files >= 8);
 }
 
 TEST_CASE("renders after a round trip through each format match the original") {
