@@ -330,6 +330,10 @@ TEST_CASE("read_gaussians and write_gaussians: every format by name and content"
   for (const Case& k : {Case{"a.ply", SplatFormat::kPly}, Case{"b.compressed.ply", SplatFormat::kCompressedPly},
                         Case{"c.SPLAT", SplatFormat::kAntimatterSplat}, Case{"d.spz", SplatFormat::kSpz}}) {
     const std::string path = dir / k.name;
+    if (k.format == SplatFormat::kSpz && !spz_supported()) {
+      check_error(write_gaussians(path, c), {"d.spz", "no zlib"});
+      continue;
+    }
     REQUIRE_MESSAGE(write_gaussians(path, c).ok(), k.name);
     SplatFormat read_as = SplatFormat::kPly;
     auto back = read_gaussians(path, &read_as);
@@ -348,9 +352,11 @@ TEST_CASE("read_gaussians and write_gaussians: every format by name and content"
   SplatFormat f = SplatFormat::kPly;
   REQUIRE(read_gaussians(dir / "plain_name.ply", &f).ok());
   CHECK(f == SplatFormat::kCompressedPly);
-  test::write_bytes(dir / "scene.bin", test::read_bytes(dir / "d.spz"));
-  REQUIRE(read_gaussians(dir / "scene.bin", &f).ok());
-  CHECK(f == SplatFormat::kSpz);
+  if (spz_supported()) {
+    test::write_bytes(dir / "scene.bin", test::read_bytes(dir / "d.spz"));
+    REQUIRE(read_gaussians(dir / "scene.bin", &f).ok());
+    CHECK(f == SplatFormat::kSpz);
+  }
   // No magic and no known name: refused with the list.
   test::write_bytes(dir / "scene.dat", test::read_bytes(dir / "c.SPLAT"));
   check_error(read_gaussians(dir / "scene.dat").status(), {"scene.dat", ".splat", ".spz", ".compressed.ply"});
@@ -361,12 +367,13 @@ TEST_CASE("read_gaussians and write_gaussians: every format by name and content"
   GaussianCloud bad = c;
   bad.means[3 * 7 + 1] = NAN;
   for (const char* name : {"n.ply", "n.compressed.ply", "n.splat", "n.spz"}) {
+    if (std::string(name) == "n.spz" && !spz_supported()) continue;
     check_error(write_gaussians(dir / name, bad), {name, "splat 7", "position"});
     CHECK_FALSE(platform::file_exists(dir / name));
   }
   bad = c;
   bad.quats[4 * 3] = bad.quats[4 * 3 + 1] = bad.quats[4 * 3 + 2] = bad.quats[4 * 3 + 3] = 0;
-  check_error(write_gaussians(dir / "z.spz", bad), {"splat 3", "zero"});
+  check_error(write_gaussians(dir / "z.splat", bad), {"splat 3", "zero"});
   bad = c;
   bad.sh.pop_back();
   check_error(write_gaussians(dir / "s.splat", bad), {"SH coefficient", "values"});
@@ -529,7 +536,7 @@ TEST_CASE("the fuzz seed corpora of the splat formats are valid files") {
       ++files;
     }
   }
-  CHECK(files >= 8);
+  CHECK(files >= (spz_supported() ? 8u : 6u));
 }
 
 TEST_CASE("renders after a round trip through each format match the original") {
@@ -555,6 +562,7 @@ TEST_CASE("renders after a round trip through each format match the original") {
     };
     for (const Case& k : {Case{SplatFormat::kPly, 1e9}, Case{SplatFormat::kAntimatterSplat, 50.0},
                           Case{SplatFormat::kSpz, 33.0}, Case{SplatFormat::kCompressedPly, 40.0}}) {
+      if (k.format == SplatFormat::kSpz && !spz_supported()) continue;
       const std::vector<uint8_t> bytes = bytes_of(encode_gaussians(c, k.format));
       auto back = parse_as(k.format, bytes, "render");
       REQUIRE(back.ok());
