@@ -5,6 +5,7 @@
 #   libc.so.6, libm.so.6, ld-linux*  -> libc6 (>= highest GLIBC_x.y the program needs)
 #   libstdc++.so.6                   -> libstdc++6 (>= GCC release of the highest GLIBCXX_/CXXABI_)
 #   libgcc_s.so.1                    -> libgcc-s1 (>= highest GCC_x.y)
+#   libz.so.1                        -> zlib1g
 #   libfoo.so.N                      -> libfooN (libfoo-N when foo ends in a digit), unversioned
 if(NOT CPACK_GENERATOR STREQUAL "DEB" OR NOT GS_DEB_CROSS_PROGRAM)
   return()
@@ -112,6 +113,8 @@ foreach(_so IN LISTS _needed)
     _gs_dep(libstdc++6 "${_min}")
   elseif(_so STREQUAL "libgcc_s.so.1")
     _gs_dep(libgcc-s1 "${_gcc}")
+  elseif(_so STREQUAL "libz.so.1")
+    list(APPEND _deps "zlib1g")  # Debian names zlib's package after the project, not the soname
   elseif(_so MATCHES "^libcamera(-base)?\\.so\\.(.+)$")
     list(APPEND _deps "libcamera${CMAKE_MATCH_2}")  # both sonames ship in libcamera<version>
   elseif(_so MATCHES "^(lib[^.]+)\\.so\\.([0-9.]+)$")

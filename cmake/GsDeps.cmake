@@ -6,6 +6,17 @@ include(GsXsimd)
 
 find_path(STB_INCLUDE_DIR stb_image.h PATH_SUFFIXES stb REQUIRED)
 
+# zlib (Debian zlib1g-dev) for .spz files; without it (a cross build with no target zlib) gs_io
+# still builds and its .spz functions report that they are unavailable.
+option(GS_WITH_ZLIB "Read and write .spz splat files (zlib)" ON)
+if(GS_WITH_ZLIB)
+  find_package(ZLIB QUIET)
+  if(NOT ZLIB_FOUND)
+    message(STATUS "hbgs: zlib not found, .spz files are disabled")
+    set(GS_WITH_ZLIB OFF)
+  endif()
+endif()
+
 if(GS_BUILD_TESTS)
   find_package(doctest REQUIRED)
   include(doctest)

@@ -35,6 +35,9 @@ set(CPACK_DEBIAN_PACKAGE_DESCRIPTION
 # Building against the package needs the header-only dependencies and, when compiled in, the
 # capture backends' development files; the program itself needs only the shared libraries (Depends).
 set(_gs_recommends libeigen3-dev libxsimd-dev nlohmann-json3-dev pkg-config)
+if(GS_WITH_ZLIB)
+  list(APPEND _gs_recommends zlib1g-dev)
+endif()
 if(GS_WITH_LIBCAMERA)
   list(APPEND _gs_recommends libcamera-dev)
 endif()

@@ -11,7 +11,7 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 out=corpus
 rm -rf "$out"
-mkdir -p "$out"/{colmap_text,colmap_binary,ply,image,model,compact,checkpoint,video}
+mkdir -p "$out"/{colmap_text,colmap_binary,ply,splat,spz,compressed_ply,image,model,compact,checkpoint,video}
 
 # A tiny scene: 3 views of 40x32 (LPIPS needs 31 px a side) (view 0 is the test view, so 2 train views, as the checkpoint
 # harness's trainer has) and 30 points; a 2-iteration run with the harness's budgets.
@@ -44,6 +44,9 @@ def ply(path, n, rest):
 ply(sys.argv[1] + "/sh0.ply", 2, 0)
 ply(sys.argv[1] + "/sh1.ply", 1, 9)
 PY
+
+# .splat, .spz and compressed.ply: tiny files of each layout (fuzz/make_splat_corpus.py).
+python3 make_splat_corpus.py "$out"
 
 # Images: PNG from synth, the same as JPEG (FFmpeg), and a 2x2 grey PNG.
 cp "$tmp/scene/images/0000.png" "$out/image/view.png"

@@ -10,7 +10,7 @@
 set -euo pipefail
 
 native=(cmake ninja-build g++ pkg-config libeigen3-dev libxsimd-dev libstb-dev doctest-dev libembree-dev libtbb-dev
-        libbenchmark-dev libcli11-dev nlohmann-json3-dev
+        libbenchmark-dev libcli11-dev nlohmann-json3-dev zlib1g-dev
         dpkg-dev file python3  # cpack -G DEB (dpkg-shlibdeps) and scripts/check-install.sh
         clang libclang-rt-14-dev)  # libFuzzer and ThreadSanitizer builds (scripts/fuzz.sh, scripts/tsan.sh)
 # Capture and ingestion: video decoding (FFmpeg's libraries), libcamera, and the ffmpeg and colmap

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // `hbgs render`: the flags of gs::jobs::render_run (gs/jobs/render.h), its per-view lines and its
-// summary: every selected view of a COLMAP dataset (PLY or SfM-point Gaussians) or of a trained
-// model's dataset to PNGs, with render.json (per-view timing and PSNR).
+// summary: every selected view of a COLMAP dataset (Gaussians from a splat file or the SfM
+// points) or of a trained model's dataset to PNGs, with render.json (per-view timing and PSNR).
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -64,7 +64,9 @@ Command add_render_command(CLI::App& parent) {
                   "COLMAP dataset folder (images/ and sparse/0/), or a run folder / .hbgs model from hbgs train")
       ->required();
   sub->add_option("--dataset", o->model_dataset, "With a trained model: its dataset (default: from the run's run.json)");
-  sub->add_option("--ply", o->ply, "3DGS PLY with the Gaussians (default: initialise from the SfM points)");
+  sub->add_option("--ply,--gaussians", o->ply,
+                  "Splat file with the Gaussians: 3DGS .ply, PlayCanvas .compressed.ply, antimatter15 .splat or Niantic "
+                  ".spz (default: initialise from the SfM points)");
   sub->add_option("--out", o->out, "Output folder for <image>.png and render.json")->required();
   CLI::Option* max_width = sub->add_option("--max-width", args->max_width,
                                             "Downscale views to at most this width (0: full size; a model: as trained)")

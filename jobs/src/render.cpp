@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// The rendering job (gs/jobs/render.h): a dataset with PLY or SfM-point Gaussians through
+// The rendering job (gs/jobs/render.h): a dataset with Gaussians from a splat file (3DGS PLY,
+// compressed.ply, .splat, .spz: gs::io::read_gaussians) or SfM points through
 // gs::Renderer, or a trained model's views through gs::model::evaluate_views.
 #include "gs/jobs/render.h"
 
@@ -16,7 +17,7 @@
 
 #include "gs/io/colmap.h"
 #include "gs/io/image.h"
-#include "gs/io/ply.h"
+#include "gs/io/splat_formats.h"
 #include "gs/jobs/run_folder.h"
 #include "gs/model/evaluate.h"
 #include "gs/model/hybrid_model.h"
@@ -209,7 +210,7 @@ Status render_run(const RenderRunOptions& a, const std::function<void(const Rend
   GaussianCloud cloud;
   std::string source;
   if (!a.ply.empty()) {
-    Expected<GaussianCloud> loaded = io::read_splat_ply(a.ply);
+    Expected<GaussianCloud> loaded = io::read_gaussians(a.ply);
     if (!loaded.ok()) return loaded.status();
     cloud = std::move(loaded).value();
     source = a.ply;

@@ -1,14 +1,15 @@
 // SPDX-License-Identifier: MIT
 // 3DGS checkpoint PLY (binary little-endian, float32 vertex properties), read and written.
-// The header is parsed and every count checked against the file size before the cloud is
-// allocated; f_rest is converted between the file's channel-major order and GaussianCloud::sh.
+// The header is read by the general PLY header reader (ply_header.h) and every count checked
+// against the file size before the cloud is allocated; f_rest is converted between the file's channel-major order and GaussianCloud::sh.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
-#include <sstream>
 
 #include "../io_util.h"
+#include "../splat/splat_common.h"
+#include "ply_header.h"
 #include "gs/io/ply.h"
 #include "gs/platform/file.h"
 
@@ -16,7 +17,6 @@ namespace gs::io {
 namespace {
 
 constexpr uint64_t kMaxGaussians = 100'000'000;
-constexpr size_t kMaxHeaderBytes = 1 << 16;
 // Inverse of sh_coeff_count - 1 for the f_rest counts the layout allows (3 * (K - 1)).
 int degree_from_rest(size_t n) { return n == 0 ? 0 : n == 9 ? 1 : n == 24 ? 2 : n == 45 ? 3 : -1; }
 
@@ -29,64 +29,22 @@ struct Header {
 };
 
 Status parse_header(const uint8_t* data, size_t size, const std::string& src, Header* h) {
-  const std::string head(reinterpret_cast<const char*>(data), std::min(size, kMaxHeaderBytes));
-  if (head.compare(0, 4, "ply\n") != 0) return parse_error(src + ": not a PLY file (no 'ply' line at the start)");
-  const size_t end = head.find("end_header\n");
-  if (end == std::string::npos) return parse_error(src + ": PLY header has no 'end_header' line (truncated?)");
-  h->bytes = end + 11;
-
-  std::istringstream lines(head.substr(0, end));
-  std::string line, element;
-  bool format_ok = false, seen_vertex = false;
-  int line_no = 0;
-  while (std::getline(lines, line)) {
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::istringstream ls(line);
-    std::string kw;
-    ls >> kw;
-    const std::string at = src + ": PLY header line " + std::to_string(line_no) + ": ";
-    if (line_no == 1 || kw.empty() || kw == "comment" || kw == "obj_info") continue;
-    if (kw == "format") {
-      std::string fmt, ver;
-      ls >> fmt >> ver;
-      if (fmt != "binary_little_endian") return unsupported(at + "format '" + fmt + "' (only binary_little_endian)");
-      if (ver != "1.0") return unsupported(at + "format version '" + ver + "'");
-      format_ok = true;
-    } else if (kw == "element") {
-      std::string count_tok;
-      ls >> element >> count_tok;
-      uint64_t n = 0;
-      for (char c : count_tok) {
-        if (c < '0' || c > '9' || n > kMaxGaussians * 10) return parse_error(at + "bad element count '" + count_tok + "'");
-        n = n * 10 + uint64_t(c - '0');
-      }
-      if (count_tok.empty()) return parse_error(at + "element without a count");
-      if (element == "vertex") {
-        if (seen_vertex) return parse_error(at + "second 'vertex' element");
-        if (n > kMaxGaussians)
-          return unsupported(at + std::to_string(n) + " vertices, more than the " + std::to_string(kMaxGaussians) + " allowed");
-        seen_vertex = true;
-        h->count = n;
-      } else if (n != 0) {
-        return unsupported(at + "element '" + element + "' with " + std::to_string(n) + " entries (only vertices are read)");
-      }
-    } else if (kw == "property") {
-      std::string type, name;
-      ls >> type >> name;
-      if (element.empty()) return parse_error(at + "property before any element");
-      if (element != "vertex") continue;  // properties of an empty element
-      if (type == "list") return unsupported(at + "list property in the vertex element");
-      if (type != "float" && type != "float32")
-        return unsupported(at + "vertex property '" + name + "' has type " + type + " (only float is supported)");
-      if (!h->prop.emplace(name, h->floats).second) return parse_error(at + "duplicate property '" + name + "'");
-      ++h->floats;
-    } else {
-      return parse_error(at + "unexpected keyword '" + kw + "'");
-    }
+  detail::PlyHeader ply;
+  GS_RETURN_IF_ERROR(detail::parse_ply_header(data, size, src, kMaxGaussians, &ply));
+  h->bytes = ply.bytes;
+  const detail::PlyElement* vertex = ply.find("vertex");
+  if (!vertex) return parse_error(src + ": PLY header has no 'vertex' element");
+  for (const detail::PlyElement& e : ply.elements)
+    if (&e != vertex && e.count != 0)
+      return unsupported(src + ": element '" + e.name + "' with " + std::to_string(e.count) +
+                         " entries (only vertices are read)");
+  h->count = vertex->count;
+  for (const detail::PlyProperty& p : vertex->properties) {
+    if (p.type == "list") return unsupported(src + ": list property '" + p.name + "' in the vertex element");
+    if (p.type != "float32")
+      return unsupported(src + ": vertex property '" + p.name + "' has type " + p.spelled + " (only float is supported)");
+    h->prop.emplace(p.name, h->floats++);
   }
-  if (!format_ok) return parse_error(src + ": PLY header has no 'format' line");
-  if (!seen_vertex) return parse_error(src + ": PLY header has no 'vertex' element");
 
   for (const char* name : {"x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2",
                            "rot_0", "rot_1", "rot_2", "rot_3"})
@@ -149,6 +107,7 @@ Expected<GaussianCloud> parse(const uint8_t* data, size_t size, const std::strin
     for (size_t c = 0; c < 3; ++c)
       for (size_t k = 1; k < K; ++k) cloud.sh[(n * K + k) * 3 + c] = f(rest[c * R + (k - 1)]);
   }
+  GS_RETURN_IF_ERROR(detail::check_cloud_finite(cloud, src));
   return cloud;
 }
 
@@ -166,11 +125,7 @@ Expected<GaussianCloud> parse_splat_ply(const uint8_t* data, size_t size, const 
 }
 
 Expected<GaussianCloud> read_splat_ply(const std::string& path) {
-  return detail::guarded(path, [&]() -> Expected<GaussianCloud> {
-    auto bytes = platform::read_file(path, uint64_t(1) << 36);
-    if (!bytes.ok()) return bytes.status();
-    return parse(bytes->data(), bytes->size(), path);
-  });
+  return detail::read_and_parse(path, parse);
 }
 
 std::vector<uint8_t> encode_splat_ply(const GaussianCloud& cloud) {
