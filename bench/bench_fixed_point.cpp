@@ -60,6 +60,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_fixed_point: %s\n", mv.status().to_string().c_str());
     return 1;
   }
+  if (mv->cloud) {
+    std::fprintf(stderr, "bench_fixed_point: %s holds plain Gaussians; this benchmark times anchor models\n", model.c_str());
+    return 1;
+  }
   const auto& views = mv->data->views;
   int max_w = 1, max_h = 1;
   for (const auto* v : views) max_w = std::max(max_w, v->camera.intr.width), max_h = std::max(max_h, v->camera.intr.height);

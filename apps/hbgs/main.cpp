@@ -43,14 +43,14 @@ int main(int argc, char** argv) {
   // Embree, so its footprint is the library's.
   const hbgs::cli::Command commands[] = {
       hbgs::cli::add_train_command(app),    hbgs::cli::add_eval_command(app),    hbgs::cli::add_render_command(app),
-      hbgs::cli::add_register_command(app), hbgs::cli::add_compact_command(app),
+      hbgs::cli::add_register_command(app), hbgs::cli::add_compact_command(app), hbgs::cli::add_export_command(app),
   };
 #else
   const hbgs::cli::Command commands[] = {
       hbgs::cli::add_synth_command(app),  hbgs::cli::add_train_command(app), hbgs::cli::add_eval_command(app),
       hbgs::cli::add_render_command(app), hbgs::cli::add_demo_command(app),  hbgs::cli::add_bench_command(app),
       hbgs::cli::add_register_command(app), hbgs::cli::add_ingest_command(app),  hbgs::cli::add_capture_command(app),
-      hbgs::cli::add_compare_poses_command(app), hbgs::cli::add_compact_command(app),
+      hbgs::cli::add_compare_poses_command(app), hbgs::cli::add_compact_command(app), hbgs::cli::add_export_command(app),
   };
 
   if (hbgs::cli::bench_passes_through(argc, argv)) {

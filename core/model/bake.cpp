@@ -175,6 +175,7 @@ struct Distiller {
   Status forward(const Camera& cam, const float bg[3], const simd::KernelTable* kt, platform::ThreadPool* pool) {
     const GaussianParams gp = activate(*cloud, &opacity);
     RenderOptions ro;
+    ro.validate_inputs = false;  // Adam keeps finite inputs finite; bake_model checks the result
     for (int c = 0; c < 3; ++c) ro.background[c] = bg[c];
     Status st = renderer.forward(cam, gp, ro, rgb.data());
     if (st.code() == StatusCode::kCapacityExceeded && renderer.stats().isects > cap.max_isects) {
@@ -272,20 +273,36 @@ Expected<GaussianCloud> bake_model(const HybridModel& model, const std::vector<C
   st.fit_seconds = platform::now_seconds() - t0;
   if (cloud.size() == 0) return invalid_argument("bake: no Gaussian of the model is visible from the cameras");
 
-  // Stage 2: distillation against the model's renders (and the PSNR before and after).
-  ModelRenderer model_renderer;
-  ModelRenderOptions mro;
-  std::copy(o.background, o.background + 3, mro.background);
-  GS_RETURN_IF_ERROR(model_renderer.set_options(mro));
-  GS_RETURN_IF_ERROR(model_renderer.init(model, max_w, max_h, pool, kt));
+  // Stage 2: distillation against the model's renders (and the PSNR before and after). The renders
+  // are made once and kept in 16 bits per channel (a step of 1/65535, far below an 8-bit level):
+  // each is used once per epoch, and rendering the model again every step cost as much as the step.
   Distiller d;
   GS_RETURN_IF_ERROR(d.init(&cloud, max_w, max_h, kt, pool, double(model.scene_extent)));
+  std::vector<size_t> offset(cameras.size() + 1, 0);
+  for (size_t i = 0; i < cameras.size(); ++i)
+    offset[i + 1] = offset[i] + size_t(cameras[i].intr.width) * size_t(cameras[i].intr.height) * 3;
+  std::vector<uint16_t> targets(offset.back());
+  {
+    ModelRenderer model_renderer;
+    ModelRenderOptions mro;
+    std::copy(o.background, o.background + 3, mro.background);
+    GS_RETURN_IF_ERROR(model_renderer.set_options(mro));
+    GS_RETURN_IF_ERROR(model_renderer.init(model, max_w, max_h, pool, kt));
+    for (size_t i = 0; i < cameras.size(); ++i) {
+      GS_RETURN_IF_ERROR(model_renderer.render(model, cameras[i], d.target.data()));
+      for (size_t j = 0; j < offset[i + 1] - offset[i]; ++j)
+        targets[offset[i] + j] = uint16_t(std::lround(std::clamp(d.target[j], 0.0f, 1.0f) * 65535.0f));
+    }
+  }
+  auto load_target = [&](size_t i) {
+    for (size_t j = 0; j < offset[i + 1] - offset[i]; ++j) d.target[j] = float(targets[offset[i] + j]) * (1.0f / 65535.0f);
+  };
   auto mean_psnr = [&]() -> Expected<double> {
     double sum = 0;
-    for (const Camera& cam : cameras) {
-      GS_RETURN_IF_ERROR(model_renderer.render(model, cam, d.target.data()));
-      GS_RETURN_IF_ERROR(d.forward(cam, o.background, kt, pool));
-      sum += psnr_of(d.rgb.data(), d.target.data(), size_t(cam.intr.width) * size_t(cam.intr.height) * 3);
+    for (size_t i = 0; i < cameras.size(); ++i) {
+      load_target(i);
+      GS_RETURN_IF_ERROR(d.forward(cameras[i], o.background, kt, pool));
+      sum += psnr_of(d.rgb.data(), d.target.data(), offset[i + 1] - offset[i]);
     }
     return sum / double(cameras.size());
   };
@@ -304,9 +321,9 @@ Expected<GaussianCloud> bake_model(const HybridModel& model, const std::vector<C
         for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[rng.next() % i]);
         pos = 0;
       }
-      const Camera& cam = cameras[order[pos++]];
-      GS_RETURN_IF_ERROR(model_renderer.render(model, cam, d.target.data()));
-      Expected<double> loss = d.step(cam, o.background, it, kt, pool);
+      const size_t i = order[pos++];
+      load_target(i);
+      Expected<double> loss = d.step(cameras[i], o.background, it, kt, pool);
       if (!loss.ok()) return loss.status();
     }
     st.distill_seconds = platform::now_seconds() - t1;
@@ -314,6 +331,9 @@ Expected<GaussianCloud> bake_model(const HybridModel& model, const std::vector<C
     if (!after.ok()) return after.status();
     st.psnr_distilled = *after;
   }
+  std::vector<float> opacities;
+  if (Status v = validate_gaussians(activate(cloud, &opacities)); !v.ok())
+    return numerical_error("bake: the distillation diverged (" + v.message() + "); try fewer --distill steps");
   if (stats) *stats = st;
   return cloud;
 }

@@ -17,6 +17,8 @@ Status compact_run(const CompactRunOptions& a, CompactRunSummary* summary) {
   if (!platform::file_exists(a.input)) return invalid_argument(a.input + " not found");
   if (!is_model_input(a.input))
     return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs) nor a model file");
+  if (is_splat_file(a.input))
+    return invalid_argument(a.input + " holds plain Gaussians; compact files hold anchor models (hbgs train, then hbgs compact RUN)");
   const double t0 = platform::now_seconds();
   Expected<ModelViews> loaded = load_model_views(a.input, a.dataset, a.max_width, "all");
   if (!loaded.ok()) return loaded.status();

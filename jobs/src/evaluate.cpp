@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gs/io/splat_formats.h"
 #include "gs/model/hybrid_model.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
@@ -21,7 +22,8 @@ namespace fs = std::filesystem;
 Status evaluate_run(const EvaluateRunOptions& a, EvaluateRunSummary* summary) {
   if (!platform::file_exists(a.input)) return invalid_argument(a.input + " not found");
   if (!is_model_input(a.input))
-    return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs) nor a .hbgs model file");
+    return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs), a model file (.hbgs, .hbgc) nor "
+                            "a splat file (" + std::string(io::supported_splat_extensions()) + ")");
   if (a.split != "test" && a.split != "train" && a.split != "all")
     return invalid_argument("--split: '" + a.split + "' is not one of test, train, all");
   Expected<ModelViews> loaded = load_model_views(a.input, a.dataset, a.max_width, a.split);
@@ -45,24 +47,26 @@ Status evaluate_run(const EvaluateRunOptions& a, EvaluateRunSummary* summary) {
   if (a.fixed_point) eo.render.int8_mlp = loaded->compact.get();  // int8 MLPs when the file is compact
   if (a.renders) eo.render_dir = s.render_dir = (fs::path(s.out_dir) / a.split / a.method / "renders").string();
   const double t0 = platform::now_seconds();
-  Expected<model::EvalResult> r = model::evaluate_views(*model, (*data)->views, eo, &pool);
+  Expected<model::EvalResult> r = evaluate_loaded(*loaded, (*data)->views, eo, &pool);
   if (!r.ok()) return r.status();
   s.seconds = platform::now_seconds() - t0;
   for (const model::ViewMetrics& v : r->views) s.mean_gaussians += double(v.gaussians);
   s.mean_gaussians /= double(r->views.size());
   s.anchors = model->anchor_count;
+  const bool cloud = loaded->cloud != nullptr;
   nlohmann::json extra = {{"model", absolute_path(src->model_path)},
                           {"dataset", absolute_path(src->dataset)},
                           {"split", a.split},
                           {"views", r->views.size()},
-                          {"model_bytes", model->file_bytes()},
+                          {"model_bytes", cloud ? file_size_or_zero(src->model_path) : model->file_bytes()},
                           {"model_file_bytes", file_size_or_zero(src->model_path)},
                           {"anchors", model->anchor_count},
                           {"mean_gaussians_per_view", s.mean_gaussians},
                           {"render_ms_median", r->render_ms_median},
                           {"fixed_point", a.fixed_point},
                           {"background", a.background.empty() ? src->background : a.background},
-                          {"image_features", model::image_feature_mode_name(model->config.image_features)}};
+                          {"image_features", cloud ? "none (plain Gaussians)" : model::image_feature_mode_name(model->config.image_features)}};
+  if (cloud) extra["gaussians"] = loaded->cloud->size();
   if (eo.lpips) extra["lpips_backbone"] = metrics::LpipsAlex::kLabel;
   std::string note;
   GS_RETURN_IF_ERROR(write_eval_files(s.out_dir, a.method, *r, extra, &note));

@@ -15,6 +15,7 @@
 
 #include "gs/io/colmap.h"
 #include "gs/io/image.h"
+#include "gs/io/splat_formats.h"
 #include "gs/jobs/pose_truth.h"
 #include "gs/model/evaluate.h"
 #include "gs/model/hybrid_model.h"
@@ -118,6 +119,27 @@ Status dataset_camera(const std::string& dataset, int width, int height, Pinhole
   return Status::Ok();
 }
 
+// The size of a scene given only as Gaussians: 1.1 x the 90th percentile of the means' distances
+// from their median (robust to the far background Gaussians trained scenes often hold).
+float cloud_extent(const GaussianCloud& c) {
+  const size_t n = c.size();
+  double med[3];
+  std::vector<double> v(n);
+  for (int k = 0; k < 3; ++k) {
+    for (size_t i = 0; i < n; ++i) v[i] = c.means[3 * i + size_t(k)];
+    std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(n / 2), v.end());
+    med[k] = v[n / 2];
+  }
+  for (size_t i = 0; i < n; ++i) {
+    double d2 = 0;
+    for (int k = 0; k < 3; ++k) d2 += (c.means[3 * i + size_t(k)] - med[k]) * (c.means[3 * i + size_t(k)] - med[k]);
+    v[i] = std::sqrt(d2);
+  }
+  const size_t p90 = std::min(n - 1, n * 9 / 10);
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(p90), v.end());
+  return float(1.1 * std::max(v[p90], 1e-6));
+}
+
 // The image to register as RGB: an alpha channel (RGBA PNG) composites it on the background the
 // model renders on, as training composites masked views.
 Expected<io::Image8> read_composited(const std::string& path, const float background[3]) {
@@ -178,19 +200,46 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
   Expected<model::Background> background = model_background(s.source, a.background);
   if (!background.ok()) return background.status();
   std::copy(background->rgb, background->rgb + 3, ro->background);
-  Expected<model::HybridModel> model = model::load_model(s.source.model_path);
-  if (!model.ok()) return model.status();
+  // The model: an anchor model, or plain Gaussians from a splat file (whose world size comes from
+  // the dataset's training cameras when there is a dataset, else from the Gaussians themselves).
+  model::HybridModel model;
+  GaussianCloud cloud;
+  float extent = 0;
+  const bool is_cloud = is_splat_file(s.source.model_path);
+  if (is_cloud) {
+    Expected<GaussianCloud> c = io::read_gaussians(s.source.model_path);
+    if (!c.ok()) return c.status();
+    if (c->size() == 0) return invalid_argument(s.source.model_path + ": holds no Gaussians");
+    cloud = std::move(c).value();
+    extent = cloud_extent(cloud);
+    if (!s.source.dataset.empty()) {
+      io::DatasetOptions dopt;
+      dopt.images = io::DatasetOptions::Images::kTest;  // cameras only for the training views
+      Expected<io::Dataset> ds = io::load_dataset(s.source.dataset, dopt);
+      if (!ds.ok()) return ds.status();
+      std::vector<const Camera*> train;
+      for (const io::DatasetView& v : ds->views)
+        if (!v.is_test) train.push_back(&v.camera);
+      if (!train.empty()) extent = model::cameras_extent(train);
+    }
+  } else {
+    Expected<model::HybridModel> m = model::load_model(s.source.model_path);
+    if (!m.ok()) return m.status();
+    model = std::move(m).value();
+    extent = model.scene_extent;
+  }
   // A start pose far outside the scene cannot be registered (the model is not in view, and float
   // rendering loses all precision at 1e30): refuse it with the distance instead of failing later.
   {
     double C[3], mean[3] = {0, 0, 0};
     pose::centre(s.init, C);
-    const size_t M = model->anchor_count;
+    const size_t M = is_cloud ? cloud.size() : model.anchor_count;
+    const float* positions = is_cloud ? cloud.means.data() : model.positions.data();
     for (size_t i = 0; i < M; ++i)
-      for (int k = 0; k < 3; ++k) mean[k] += double(model->positions[3 * i + size_t(k)]) / double(M);
+      for (int k = 0; k < 3; ++k) mean[k] += double(positions[3 * i + size_t(k)]) / double(M);
     const double d = std::sqrt((C[0] - mean[0]) * (C[0] - mean[0]) + (C[1] - mean[1]) * (C[1] - mean[1]) +
                                (C[2] - mean[2]) * (C[2] - mean[2]));
-    const double limit = kMaxStartDistanceInRadii * double(model->scene_extent);
+    const double limit = kMaxStartDistanceInRadii * double(extent);
     auto g = [](double v) {
       char buf[32];
       std::snprintf(buf, sizeof(buf), "%.4g", v);
@@ -198,7 +247,7 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
     };
     if (!(d <= limit))
       return invalid_argument("--init: the camera centre is " + g(d) + " from the scene's centre, more than " +
-                              g(kMaxStartDistanceInRadii) + " times the scene radius " + g(model->scene_extent) +
+                              g(kMaxStartDistanceInRadii) + " times the scene radius " + g(extent) +
                               "; check the pose's order (qw qx qy qz tx ty tz, world-to-camera as in COLMAP) and units");
   }
   Expected<io::Image8> img = read_composited(a.image, background->rgb);
@@ -211,7 +260,9 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
 
   platform::ThreadPool pool(a.threads);
   s.threads = pool.num_threads();
-  Expected<std::unique_ptr<pose::Registrar>> reg = pose::Registrar::create(*model, img->width, img->height, *ro, &pool);
+  Expected<std::unique_ptr<pose::Registrar>> reg =
+      is_cloud ? pose::Registrar::create(cloud, extent, img->width, img->height, *ro, &pool)
+               : pose::Registrar::create(model, img->width, img->height, *ro, &pool);
   if (!reg.ok()) return reg.status();
   pose::RegisterResult& r = s.result;
   if (Status st = (*reg)->register_view(img->pixels.data(), K, s.init, &r); !st.ok())
@@ -252,7 +303,8 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
     return invalid_argument("--views: '" + a.views + "' is not one of test, train, all");
   if (!platform::file_exists(a.input)) return invalid_argument(a.input + " not found");
   if (!is_model_input(a.input))
-    return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs) nor a .hbgs model file");
+    return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs), a model file (.hbgs, .hbgc) nor "
+                            "a splat file (" + std::string(io::supported_splat_extensions()) + ")");
   pose::PoseNoise noise;
   if (Status st = pose::parse_pose_noise(a.init_noise, &noise); !st.ok())
     return invalid_argument("--init-noise: " + st.message());
@@ -265,6 +317,7 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   Expected<model::Background> background = model_background(*src, a.background);
   if (!background.ok()) return background.status();
   std::copy(background->rgb, background->rgb + 3, ro->background);
+  const float extent = loaded->scene_extent();  // before the noise moves the split's cameras
   // True poses and the scene frame of the training cameras; the start poses are the perturbed ones.
   PoseTruth truth;
   if (Status st = apply_pose_noise(&ds, a.init_noise, a.views, &truth); !st.ok())
@@ -287,7 +340,8 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   // One registrar for every view: planned once, then allocation-free.
   platform::ThreadPool pool(a.threads);
   Expected<std::unique_ptr<pose::Registrar>> reg =
-      pose::Registrar::create(*model, max_w, max_h, *ro, &pool);
+      loaded->cloud ? pose::Registrar::create(*loaded->cloud, extent, max_w, max_h, *ro, &pool)
+                    : pose::Registrar::create(*model, max_w, max_h, *ro, &pool);
   if (!reg.ok()) return reg.status();
 
   const double t0 = platform::now_seconds();
@@ -328,10 +382,10 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   std::copy(background->rgb, background->rgb + 3, eo.render.background);
   eo.render.fixed_point_raster = a.fixed_point;
   if (a.fixed_point) eo.render.int8_mlp = loaded->compact.get();  // int8 MLPs when the file is compact
-  Expected<model::EvalResult> m_start = model::evaluate_views(*model, split_views, eo, &pool);
+  Expected<model::EvalResult> m_start = evaluate_loaded(*loaded, split_views, eo, &pool);
   if (!m_start.ok()) return m_start.status();
   for (size_t k = 0; k < index.size(); ++k) ds.views[index[k]].camera.pose = estimated[k];
-  Expected<model::EvalResult> m_reg = model::evaluate_views(*model, split_views, eo, &pool);
+  Expected<model::EvalResult> m_reg = evaluate_loaded(*loaded, split_views, eo, &pool);
   if (!m_reg.ok()) return m_reg.status();
 
   std::vector<double> rot, trans, init_rot, init_trans, ms;

@@ -115,7 +115,7 @@ Status render_model(const RenderRunOptions& a, const std::function<void(const Re
   std::copy(background->rgb, background->rgb + 3, eo.render.background);
   eo.render.fixed_point_raster = a.fixed_point;
   if (a.fixed_point) eo.render.int8_mlp = loaded->compact.get();  // int8 MLPs when the file is compact
-  Expected<model::EvalResult> r = model::evaluate_views(*model, (*data)->views, eo, &pool);
+  Expected<model::EvalResult> r = evaluate_loaded(*loaded, (*data)->views, eo, &pool);
   if (!r.ok()) return r.status();
 
   RenderRunSummary s;

@@ -11,7 +11,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gs/io/splat_formats.h"
 #include "gs/model/compact_model.h"
+#include "gs/model/trainer.h"
 #include "gs/platform/file.h"
 #include "gs/platform/path.h"
 #include "json_util.h"
@@ -70,11 +72,16 @@ uint64_t file_size_or_zero(const std::string& path) {
   return ec ? 0 : uint64_t(n);
 }
 
+bool is_splat_file(const std::string& path) {
+  std::error_code ec;
+  return fs::is_regular_file(path, ec) && io::splat_format_from_extension(path).ok();
+}
+
 bool is_model_input(const std::string& path) {
   std::error_code ec;
   const fs::path p(path);
   if (fs::is_regular_file(p, ec)) {
-    if (p.extension() == ".hbgs" || p.extension() == ".hbgc") return true;
+    if (p.extension() == ".hbgs" || p.extension() == ".hbgc" || is_splat_file(path)) return true;
     // Any model file by its magic: float "HBGSMODL" or compact "HBGSCMPT".
     uint8_t head[8] = {};
     std::ifstream f(p, std::ios::binary);
@@ -149,13 +156,36 @@ Expected<ModelViews> load_model_views(const std::string& input, const std::strin
   Expected<ModelSource> src = resolve_model_source(input, dataset_override, max_width_override);
   if (!src.ok()) return src.status();
   out.source = std::move(src).value();
-  Expected<model::HybridModel> model = model::load_model(out.source.model_path, &out.compact);
-  if (!model.ok()) return model.status();
-  out.model = std::move(model).value();
+  if (is_splat_file(out.source.model_path)) {
+    Expected<GaussianCloud> cloud = io::read_gaussians(out.source.model_path);
+    if (!cloud.ok()) return cloud.status();
+    if (cloud->size() == 0) return invalid_argument(out.source.model_path + ": holds no Gaussians");
+    out.cloud = std::make_unique<GaussianCloud>(std::move(cloud).value());
+  } else {
+    Expected<model::HybridModel> model = model::load_model(out.source.model_path, &out.compact);
+    if (!model.ok()) return model.status();
+    out.model = std::move(model).value();
+  }
   Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(out.source.dataset, out.source.max_width, split);
   if (!data.ok()) return data.status();
   out.data = std::move(data).value();
   return out;
+}
+
+Expected<model::EvalResult> evaluate_loaded(const ModelViews& loaded, const std::vector<const io::DatasetView*>& views,
+                                            const model::EvalOptions& options, platform::ThreadPool* pool) {
+  if (loaded.cloud) return model::evaluate_views(*loaded.cloud, views, options, pool);
+  return model::evaluate_views(loaded.model, views, options, pool);
+}
+
+float ModelViews::scene_extent() const {
+  if (!cloud) return model.scene_extent;
+  std::vector<const Camera*> train;
+  for (const io::DatasetView& v : data->dataset.views)
+    if (!v.is_test) train.push_back(&v.camera);
+  if (train.empty())
+    for (const io::DatasetView& v : data->dataset.views) train.push_back(&v.camera);
+  return model::cameras_extent(train);
 }
 
 std::string default_lpips_dir() {

@@ -9,12 +9,16 @@
 #include <string>
 #include <vector>
 
+#include "gs/gaussians.h"
 #include "gs/io/colmap.h"
 #include "gs/metrics/lpips.h"
 #include "gs/model/background.h"
 #include "gs/model/compact_model.h"
+#include "gs/model/evaluate.h"
 #include "gs/model/hybrid_model.h"
 #include "gs/status.h"
+
+namespace gs::platform { class ThreadPool; }
 
 namespace gs::jobs {
 
@@ -28,9 +32,12 @@ inline constexpr const char* kPerViewJson = "per_view.json";
 inline constexpr const char* kPsnrCsv = "psnr_vs_time.csv";
 inline constexpr const char* kPsnrSvg = "psnr_vs_time.svg";
 
-// True for a model file (.hbgs, .hbgc, or any file starting with a model magic: float or compact)
-// or a folder holding run.json or model.hbgs (a training run).
+// True for a model file (.hbgs, .hbgc, or any file starting with a model magic: float or compact),
+// a file of plain Gaussians (is_splat_file) or a folder holding run.json or model.hbgs (a run).
 bool is_model_input(const std::string& path);
+// True for a regular file in one of the splat formats hbgs reads as a model (3DGS PLY,
+// compressed.ply, .splat, .spz: gs/io/splat_formats.h), by its extension.
+bool is_splat_file(const std::string& path);
 
 // The model file, dataset and image width limit behind a run folder or .hbgs file. dataset and
 // max_width come from the run's run.json unless overridden (dataset_override non-empty,
@@ -58,12 +65,20 @@ Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& r
 // `split` of its dataset: what evaluation, rendering and batch registration start from.
 struct ModelViews {
   ModelSource source;
-  model::HybridModel model;
+  model::HybridModel model;                      // the anchor model (empty when cloud is set)
   std::unique_ptr<model::CompactModel> compact;  // set when the model file is a compact one
+  std::unique_ptr<GaussianCloud> cloud;          // set when the input is a splat file (plain Gaussians)
   std::unique_ptr<LoadedDataset> data;
+  // World size for registration steps and limits: the model's, or for a cloud the training
+  // cameras' (model::cameras_extent).
+  float scene_extent() const;
 };
 Expected<ModelViews> load_model_views(const std::string& input, const std::string& dataset_override, int max_width_override,
                                       const std::string& split);
+
+// Evaluates the loaded model or cloud on views (gs/model/evaluate.h).
+Expected<model::EvalResult> evaluate_loaded(const ModelViews& loaded, const std::vector<const io::DatasetView*>& views,
+                                            const model::EvalOptions& options, platform::ThreadPool* pool);
 
 // The default LPIPS-Alex weights folder: $HBGS_LPIPS_WEIGHTS when set, else the first
 // shared/data/lpips_alex (holding weights.bin) beside the current folder or beside one of the

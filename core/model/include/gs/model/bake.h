@@ -15,7 +15,8 @@
 //      to reproduce the model's own renders of the cameras, which recovers much of what a fixed
 //      Gaussian cannot express (view-dependent opacity and shape).
 // Memory: stage 1 holds per visible anchor the SH normal matrix and per candidate its right-hand
-// sides ((K^2 + 3 k K) doubles per anchor, K = (sh_degree + 1)^2); stage 2 three copies of the cloud.
+// sides ((K^2 + 3 k K) doubles per anchor, K = (sh_degree + 1)^2); stage 2 the model's renders of
+// the cameras at 16 bits per channel and three copies of the cloud (values, Adam moments).
 #pragma once
 
 #include <cstddef>

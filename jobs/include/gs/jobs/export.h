@@ -1,0 +1,45 @@
+// SPDX-License-Identifier: MIT
+// The export job (`hbgs export`): a trained anchor model (run folder or model file, float or compact)
+// baked into plain Gaussians with SH colour over its dataset's training cameras (gs/model/bake.h)
+// and written in the splat format the output's extension names (3DGS PLY, compressed.ply, .splat,
+// .spz: gs/io/splat_formats.h), atomically; optionally measured: test PSNR of the model and of the
+// baked Gaussians as written (read back from the file, so the format's quantisation counts).
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "gs/io/splat_formats.h"
+#include "gs/jobs/run_folder.h"
+#include "gs/model/bake.h"
+#include "gs/model/evaluate.h"
+#include "gs/status.h"
+
+namespace gs::jobs {
+
+struct ExportRunOptions {
+  std::string input;        // run folder or model file (.hbgs or .hbgc)
+  std::string out;          // the file to write; its extension picks the format
+  std::string dataset;      // "" : the one in the run's run.json
+  int max_width = -1;       // -1: as trained
+  int threads = 0;          // 0: all CPUs
+  int sh_degree = 3;        // 0..3 (.splat keeps degree 0 only)
+  int distill_iterations = 1000;  // steps of distillation against the model's renders (0: the fit only)
+  bool evaluate = true;     // test PSNR of the model and of the written Gaussians
+  uint64_t seed = 0;
+};
+
+struct ExportRunSummary {
+  ModelSource source;
+  io::SplatFormat format = io::SplatFormat::kPly;
+  model::BakeStats bake;
+  size_t gaussians = 0;
+  uint64_t bytes = 0;  // of the written file
+  bool evaluated = false;
+  model::EvalResult model_eval, baked_eval;  // test views, 8-bit renders
+  double seconds = 0;
+};
+
+Status export_run(const ExportRunOptions& options, ExportRunSummary* summary);
+
+}  // namespace gs::jobs

@@ -1,0 +1,74 @@
+// SPDX-License-Identifier: MIT
+// The export job (gs/jobs/export.h).
+#include "gs/jobs/export.h"
+
+#include <algorithm>
+#include <vector>
+
+#include "gs/platform/clock.h"
+#include "gs/platform/file.h"
+#include "gs/platform/thread_pool.h"
+
+namespace gs::jobs {
+
+Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
+  if (a.out.empty()) return invalid_argument("--out: the file to write is required (its extension picks the format: " +
+                                             std::string(io::supported_splat_extensions()) + ")");
+  Expected<io::SplatFormat> format = io::splat_format_from_extension(a.out);
+  if (!format.ok()) return Status(format.status().code(), "--out: " + format.status().message());
+  if (a.sh_degree < 0 || a.sh_degree > 3) return invalid_argument("--sh-degree must be 0-3");
+  if (a.distill_iterations < 0) return invalid_argument("--distill must be 0 or more");
+  if (!platform::file_exists(a.input)) return invalid_argument(a.input + " not found");
+  if (is_splat_file(a.input)) return invalid_argument(a.input + " already holds plain Gaussians; hbgs export bakes anchor models");
+  if (!is_model_input(a.input))
+    return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs) nor a model file (.hbgs, .hbgc)");
+  const double t0 = platform::now_seconds();
+  // The cameras of every view and the test views' images (the training images are not needed).
+  Expected<ModelViews> loaded = load_model_views(a.input, a.dataset, a.max_width, "test");
+  if (!loaded.ok()) return loaded.status();
+  ExportRunSummary s;
+  s.source = loaded->source;
+  s.format = *format;
+  if (absolute_path(a.out) == absolute_path(s.source.model_path)) return invalid_argument("--out " + a.out + " is the input model");
+  Expected<model::Background> background = model_background(s.source, "");
+  if (!background.ok()) return background.status();
+  std::vector<Camera> train;
+  std::vector<const io::DatasetView*> test;
+  for (const io::DatasetView& v : loaded->data->dataset.views) {
+    if (v.is_test) test.push_back(&v);
+    else train.push_back(v.camera);
+  }
+  if (train.empty()) return invalid_argument(s.source.dataset + ": no training views to bake over");
+
+  platform::ThreadPool pool(a.threads);
+  model::BakeOptions bo;
+  bo.sh_degree = *format == io::SplatFormat::kAntimatterSplat ? 0 : a.sh_degree;  // .splat stores colour only
+  bo.distill_iterations = a.distill_iterations;
+  bo.seed = a.seed;
+  std::copy(background->rgb, background->rgb + 3, bo.background);
+  Expected<GaussianCloud> cloud = model::bake_model(loaded->model, train, bo, &pool, &s.bake);
+  if (!cloud.ok()) return cloud.status();
+  GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *cloud));
+  s.gaussians = cloud->size();
+  s.bytes = file_size_or_zero(a.out);
+  if (a.evaluate && !test.empty()) {
+    // The Gaussians as every reader sees them: read back from the file just written.
+    Expected<GaussianCloud> back = io::read_gaussians(a.out);
+    if (!back.ok()) return back.status();
+    model::EvalOptions eo;
+    eo.psnr_only = true;
+    std::copy(background->rgb, background->rgb + 3, eo.render.background);
+    Expected<model::EvalResult> me = model::evaluate_views(loaded->model, test, eo, &pool);
+    if (!me.ok()) return me.status();
+    Expected<model::EvalResult> be = model::evaluate_views(*back, test, eo, &pool);
+    if (!be.ok()) return be.status();
+    s.model_eval = std::move(me).value();
+    s.baked_eval = std::move(be).value();
+    s.evaluated = true;
+  }
+  s.seconds = platform::now_seconds() - t0;
+  if (summary) *summary = std::move(s);
+  return Status::Ok();
+}
+
+}  // namespace gs::jobs
