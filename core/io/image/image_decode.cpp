@@ -113,9 +113,9 @@ Status bad_size(const std::string& source, uint64_t w, uint64_t h) {
                      std::to_string(kMaxImageSide) + " per side");
 }
 
-Expected<Image8> decode(const uint8_t* data, size_t size, int channels, const std::string& source) {
-  if (channels != 1 && channels != 3 && channels != 4)
-    return invalid_argument(source + ": cannot decode to " + std::to_string(channels) + " channels (1, 3 or 4)");
+// Checks everything stb would trust (format, chunk and table sizes, sides) and reads the header:
+// width, height and the stored channel count (1 grey, 2 grey + alpha, 3 RGB, 4 RGBA).
+Status check_header(const uint8_t* data, size_t size, const std::string& source, int* w, int* h, int* comp) {
   if (data == nullptr || size == 0) return parse_error(source + ": empty file, not an image");
   if (!looks_like_png(data, size) && !looks_like_jpeg(data, size))
     return parse_error(source + ": unknown image format (not PNG or JPEG)");
@@ -127,11 +127,19 @@ Expected<Image8> decode(const uint8_t* data, size_t size, int channels, const st
   uint64_t pw = 0, ph = 0;
   if (png_sides(data, size, &pw, &ph) && (pw == 0 || ph == 0 || pw > uint64_t(kMaxImageSide) || ph > uint64_t(kMaxImageSide)))
     return bad_size(source, pw, ph);
-  int w = 0, h = 0, comp = 0;
-  if (!stbi_info_from_memory(data, len, &w, &h, &comp))
+  if (!stbi_info_from_memory(data, len, w, h, comp))
     return parse_error(source + ": bad image header (" + stbi_failure_reason() + ")");
-  if (w <= 0 || h <= 0 || w > kMaxImageSide || h > kMaxImageSide) return bad_size(source, uint64_t(w), uint64_t(h));
+  if (*w <= 0 || *h <= 0 || *w > kMaxImageSide || *h > kMaxImageSide) return bad_size(source, uint64_t(*w), uint64_t(*h));
+  return Status::Ok();
+}
 
+Expected<Image8> decode(const uint8_t* data, size_t size, int channels, const std::string& source) {
+  if (channels != kChannelsAsStored && channels != 1 && channels != 3 && channels != 4)
+    return invalid_argument(source + ": cannot decode to " + std::to_string(channels) + " channels (1, 3 or 4)");
+  int w = 0, h = 0, comp = 0;
+  GS_RETURN_IF_ERROR(check_header(data, size, source, &w, &h, &comp));
+  if (channels == kChannelsAsStored) channels = (comp == 2 || comp == 4) ? 4 : 3;
+  const int len = int(size);
   int dw = 0, dh = 0;
   uint8_t* pixels = stbi_load_from_memory(data, len, &dw, &dh, &comp, channels);
   if (pixels == nullptr) return parse_error(source + ": cannot decode image (" + stbi_failure_reason() + ")");
@@ -157,6 +165,18 @@ Expected<Image8> decode(const uint8_t* data, size_t size, int channels, const st
 
 Expected<Image8> decode_image(const uint8_t* data, size_t size, int channels, const std::string& source) {
   return detail::guarded(source, [&]() { return decode(data, size, channels, source); });
+}
+
+Expected<ImageInfo> read_image_info(const std::string& path) {
+  return detail::guarded(path, [&]() -> Expected<ImageInfo> {
+    auto bytes = platform::read_file(path, uint64_t(1) << 30);
+    if (!bytes.ok()) return bytes.status();
+    int w = 0, h = 0, comp = 0;
+    GS_RETURN_IF_ERROR(check_header(bytes->data(), bytes->size(), path, &w, &h, &comp));
+    ImageInfo info;
+    info.width = w, info.height = h, info.has_alpha = comp == 2 || comp == 4;
+    return info;
+  });
 }
 
 Expected<Image8> read_image(const std::string& path, int channels) {
