@@ -442,9 +442,8 @@ Status load_pixels(const ViewSpec& spec, const CameraPlan& plan, const std::stri
                               " is " + size_text(rgb.width, rgb.height));
     if (mask.empty()) {
       mask = std::move(*file_mask);
-    } else {
-      for (size_t i = 0; i < mask.pixels.size(); ++i)
-        mask.pixels[i] = uint8_t((unsigned(mask.pixels[i]) * file_mask->pixels[i] + 127u) / 255u);
+    } else {  // both: their intersection, min (see load_dataset)
+      for (size_t i = 0; i < mask.pixels.size(); ++i) mask.pixels[i] = std::min(mask.pixels[i], file_mask->pixels[i]);
     }
   }
   if (plan.distorted()) {

@@ -169,8 +169,10 @@ struct Dataset {
 // options.masks_dir) is read as its grey level composited over black: luminance
 // (77 R + 150 G + 29 B) / 256 times alpha / 255, so a grey, RGB, grey + alpha or RGBA file works; a
 // file holding only 0 and 1 is a 0/1 mask and is scaled to 0/255. With both, the mask is their
-// product (alpha x mask / 255). A mask must have its image's size (else an error names both files
-// and sizes), and is undistorted and downscaled with the image (outside the distorted image: 0).
+// intersection min(alpha, mask): a binary mask cuts a soft alpha, and the same coverage given twice
+// (hbgs synth --object writes RGBA images and masks/) stays as it is, where a product would square
+// the partial coverage of edge pixels. A mask must have its image's size (else an error names both
+// files and sizes), and is undistorted and downscaled with the image (outside the distorted image: 0).
 Expected<Dataset> load_dataset(const std::string& root, const DatasetOptions& options = {});
 
 }  // namespace gs::io
