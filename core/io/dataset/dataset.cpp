@@ -104,6 +104,7 @@ struct ViewSpec {
   size_t plan = 0;  // index into Source::plans
   double qvec[4] = {1, 0, 0, 0}, tvec[3] = {0, 0, 0};
   enum class Split { kByName, kTrain, kTest } split = Split::kByName;
+  bool transforms = false;  // from a transforms file (mask lookup also without the first folder)
 };
 
 struct Source {
@@ -113,6 +114,7 @@ struct Source {
   std::vector<float> points_xyz;
   std::vector<uint8_t> points_rgb;
   PointsSource points_source = PointsSource::kSfm;
+  bool masks_named = false;  // every view names its mask file: masks_dir is not searched
 };
 
 // ---- COLMAP layout ----
@@ -264,6 +266,7 @@ Expected<Source> transforms_source(const std::string& folder, const std::vector<
       v.what = where;
       v.image_id = uint32_t(src.views.size() + 1);
       v.split = input.split;
+      v.transforms = true;
       if (!f.mask_path.empty()) {
         std::string mask;
         GS_RETURN_IF_ERROR(clean_relative_path(f.mask_path, at, "mask_path", &mask));
@@ -300,6 +303,15 @@ Expected<Source> transforms_source(const std::string& folder, const std::vector<
       view_of_name.emplace(v.name, src.views.size());
       src.views.push_back(std::move(v));
     }
+  }
+  // Frames that name their masks (nerfstudio's mask_path) all do, as nerfstudio requires; then the
+  // masks folder is not searched.
+  const auto named = std::find_if(src.views.begin(), src.views.end(), [](const ViewSpec& v) { return !v.mask_path.empty(); });
+  if (named != src.views.end()) {
+    for (const ViewSpec& v : src.views)
+      if (v.mask_path.empty())
+        return invalid_argument(v.what + ": no 'mask_path', but " + named->what + " has one (give every frame a mask_path, or none)");
+    src.masks_named = true;
   }
   // One file's split lists: test = test_filenames, else val_filenames; train = train_filenames, else
   // every other frame. Frames in neither list are not views of the dataset.
@@ -374,12 +386,20 @@ Expected<Image8> read_mask(const std::string& path) {
   return m;
 }
 
-// The mask file of a view in the masks folder, "" when there is none.
-std::string find_mask_file(const std::string& masks_root, const std::string& name, std::string* tried) {
-  std::vector<std::string> candidates = {name + ".png", name};
-  const size_t slash = name.rfind('/'), dot = name.rfind('.');
-  if (dot != std::string::npos && (slash == std::string::npos || dot > slash) && name.substr(dot) != ".png")
-    candidates.push_back(name.substr(0, dot) + ".png");
+// The mask file of a view in the masks folder, "" when there is none: NAME.png, NAME, NAME with its
+// extension replaced by .png; for a transforms view also the same with NAME's first folder dropped
+// (its path is relative to the json: images/x.png has its mask in masks/x.png).
+std::string find_mask_file(const std::string& masks_root, const std::string& name, bool drop_first_folder, std::string* tried) {
+  std::vector<std::string> names = {name};
+  if (const size_t first = name.find('/'); drop_first_folder && first != std::string::npos) names.push_back(name.substr(first + 1));
+  std::vector<std::string> candidates;
+  for (const std::string& n : names) {
+    candidates.push_back(n + ".png");
+    candidates.push_back(n);
+    const size_t slash = n.rfind('/'), dot = n.rfind('.');
+    if (dot != std::string::npos && (slash == std::string::npos || dot > slash) && n.substr(dot) != ".png")
+      candidates.push_back(n.substr(0, dot) + ".png");
+  }
   for (const std::string& c : candidates) {
     const std::string path = detail::join_path(masks_root, c);
     if (platform::file_exists(path) && !platform::is_directory(path)) return path;
@@ -429,7 +449,7 @@ Status load_pixels(const ViewSpec& spec, const CameraPlan& plan, const std::stri
   }
   std::string mask_file = spec.mask_path, tried;
   if (mask_file.empty() && !masks_root.empty()) {
-    mask_file = find_mask_file(masks_root, spec.name, &tried);
+    mask_file = find_mask_file(masks_root, spec.name, spec.transforms, &tried);
     if (mask_file.empty())
       return io_error(masks_root + ": no mask for " + spec.name + " (" + spec.what + "); tried " + tried +
                       ". Every view needs a mask when the dataset has a masks folder");
@@ -465,7 +485,7 @@ Status load_pixels(const ViewSpec& spec, const CameraPlan& plan, const std::stri
 Expected<Dataset> assemble(const std::string& root, const std::string& folder, Source src, const DatasetOptions& options) {
   std::sort(src.views.begin(), src.views.end(), [](const ViewSpec& a, const ViewSpec& b) { return a.name < b.name; });
   const std::string masks_root = options.masks_dir.empty() ? "" : detail::join_path(folder, options.masks_dir);
-  const bool has_masks_folder = !masks_root.empty() && platform::is_directory(masks_root);
+  const bool has_masks_folder = !src.masks_named && !masks_root.empty() && platform::is_directory(masks_root);
 
   Dataset ds;
   ds.root = root;

@@ -100,8 +100,10 @@ struct DatasetOptions {
   // Masks by image name, relative to the dataset root ("" disables): for image NAME (its name in
   // the COLMAP model, or its path relative to the transforms file) the first of masks/NAME.png
   // (COLMAP's --ImageReader.mask_path convention, e.g. masks/0001.jpg.png), masks/NAME, and
-  // masks/NAME with its extension replaced by .png (CO3D). When the folder exists every loaded
-  // view must have a mask there (else an error names the view and the paths tried).
+  // masks/NAME with its extension replaced by .png (CO3D); for a transforms view the same three
+  // again with NAME's first folder dropped (images/0001.png -> masks/0001.png). When the folder
+  // exists every loaded view must have a mask there (else an error names the view and the paths
+  // tried), unless the transforms frames name their masks (mask_path; then all of them must).
   std::string masks_dir = "masks";
   DatasetLayout layout = DatasetLayout::kAuto;
   int max_width = 0;                  // > 0: downscale images (and intrinsics) to at most this width
