@@ -10,6 +10,7 @@
 
 #include "gs/io/colmap.h"
 #include "gs/io/transforms.h"
+#include "gs/platform/file.h"
 #include "io_test_util.h"
 
 namespace gs::io {
@@ -496,6 +497,65 @@ TEST_CASE("random_points_in_common_view: inside every camera's view, seeded, and
   }
   check_error(random_points_in_common_view(outward, 100, 1).status(), {"share no common view"});
   check_error(random_points_in_common_view({}, 100, 1).status(), {"no cameras"});
+}
+
+}  // namespace
+}  // namespace gs::io
+
+namespace gs::io {
+namespace {
+
+// Rotation angle (degrees) of A B^T for row-major rotations.
+double relative_angle_deg(const float A[9], const float B[9], const float C[9], const float D[9]) {
+  // (A B^T) vs (C D^T): the angle of (A B^T)(C D^T)^T.
+  double ab[9], cd[9];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      ab[3 * i + j] = cd[3 * i + j] = 0;
+      for (int k = 0; k < 3; ++k) {
+        ab[3 * i + j] += double(A[3 * i + k]) * B[3 * j + k];
+        cd[3 * i + j] += double(C[3 * i + k]) * D[3 * j + k];
+      }
+    }
+  double trace = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k) trace += ab[3 * i + k] * cd[3 * i + k];
+  return std::acos(std::clamp((trace - 1) / 2, -1.0, 1.0)) * 180 / 3.14159265358979323846;
+}
+
+TEST_CASE("transforms.json: instant-ngp's fox poses agree with the COLMAP model up to the world frame (shared data)") {
+  if (!test::have_shared_data("fox/original_poses/transforms.json")) return;
+  auto text = platform::read_text_file(test::shared_data("fox/original_poses/transforms.json"));
+  REQUIRE(text.ok());
+  TransformsFile file;
+  REQUIRE_MESSAGE(parse_transforms_json(*text, "fox transforms.json", &file).ok(), "parse failed");
+  REQUIRE(file.frames.size() == 67);  // the dataset kept 50 of them
+  CHECK(*file.frames[0].intrinsics.fl_x == 1375.52);
+  CHECK(*file.frames[0].intrinsics.w == 1080);
+  CHECK(*file.frames[0].intrinsics.k1 == doctest::Approx(0.0578421));
+  auto colmap = read_colmap_model(test::shared_data("fox/sparse/0"));
+  REQUIRE_MESSAGE(colmap.ok(), colmap.status().to_string());
+  // Frame images/NNNN.jpg is COLMAP image NNNN.jpg. instant-ngp moved, turned and scaled the world,
+  // which leaves every relative rotation R_i R_j^T as it was: compare those.
+  std::vector<Pose> ngp, sfm;
+  for (const TransformsFrame& f : file.frames) {
+    const std::string name = f.file_path.substr(f.file_path.rfind('/') + 1);
+    const auto im = std::find_if(colmap->images.begin(), colmap->images.end(), [&](const ColmapImage& i) { return i.name == name; });
+    if (im == colmap->images.end()) continue;
+    double q[4], t[3];
+    REQUIRE(pose_from_transform_matrix(f.transform_matrix, q, t).empty());
+    ngp.push_back(pose_from_colmap(q, t));
+    sfm.push_back(pose_from_colmap(im->qvec, im->tvec));
+  }
+  REQUIRE(ngp.size() == 50);
+  std::vector<double> errors;
+  for (size_t i = 0; i < ngp.size(); ++i)
+    for (size_t j = i + 1; j < ngp.size(); j += 7) errors.push_back(relative_angle_deg(ngp[i].R, ngp[j].R, sfm[i].R, sfm[j].R));
+  std::sort(errors.begin(), errors.end());
+  MESSAGE("relative rotation differences over " << errors.size() << " pairs: median " << errors[errors.size() / 2] << " deg, max "
+                                                << errors.back() << " deg");
+  CHECK(errors[errors.size() / 2] < 0.5);
+  CHECK(errors.back() < 2.0);
 }
 
 }  // namespace
