@@ -360,7 +360,9 @@ gs::Expected<std::unique_ptr<Scene>> Scene::create_object(uint64_t seed, bool cl
   const double top = 0.1;
   b.add(Pattern::kChecker, detail::make_cylinder(0.5, top, 96), 0, 0, 0, top, 0, 0.10, 16, 0, true);
   b.add(Pattern::kStripes, detail::make_uv_sphere(0.17, 64, 32), -0.2, -0.14, top + 0.17, 0.17, 0, 0.35, 48, 0.015, true);
-  b.add(Pattern::kChecker, detail::make_box(0.11, 0.11, 0.11), 0.22, -0.17, top + 0.11, 0.11, 0, 0.15, 24, 0.015, true);
+  // Half side 0.12, not 0.11: the checker's cell borders (0.16 m cells offset by 0.05 m) must not lie
+  // on a face, where the parity would flip from ray to ray.
+  b.add(Pattern::kChecker, detail::make_box(0.12, 0.12, 0.12), 0.22, -0.17, top + 0.12, 0.12, 0, 0.15, 24, 0.015, true);
   b.add(Pattern::kBands, detail::make_cylinder(0.09, 0.42, 64), 0.04, 0.22, top, 0.42, 0, 0.25, 32, 0.015, true);
   b.add(Pattern::kDots, detail::make_torus(0.14, 0.05, 72, 24), -0.24, 0.17, top + 0.05, 0.14, 0.05, 0.30, 40, 0.015, true);
   b.add(Pattern::kNoise, detail::make_uv_sphere(0.1, 48, 24), 0.3, 0.15, top + 0.1, 0.1, 0, 0.45, 64, 0.015, true);
