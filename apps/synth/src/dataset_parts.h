@@ -53,6 +53,9 @@ std::vector<SparsePoint> sample_sparse_points(const Scene& scene, const std::vec
                                               uint64_t seed, int threads, const std::function<bool(const SceneHit&)>& accept,
                                               long long* draws);
 
+// The one PINHOLE camera (id 1) of a synth COLMAP model.
+gs::io::ColmapCamera colmap_pinhole(const gs::PinholeIntrinsics& K);
+
 // The COLMAP model: one PINHOLE camera (id 1), images with ids from 1 in view order, the points
 // with ids from 1 and their tracks as POINTS2D.
 gs::io::ColmapModel make_colmap_model(const std::vector<ViewSetup>& views, const std::vector<std::string>& names,

@@ -132,17 +132,20 @@ std::vector<SparsePoint> sample_sparse_points(const Scene& scene, const std::vec
   return accepted;
 }
 
-gs::io::ColmapModel make_colmap_model(const std::vector<ViewSetup>& views, const std::vector<std::string>& names,
-                                      const std::vector<SparsePoint>& points) {
-  const gs::PinholeIntrinsics& K = views.front().camera.intr;
-  gs::io::ColmapModel model;
+gs::io::ColmapCamera colmap_pinhole(const gs::PinholeIntrinsics& K) {
   gs::io::ColmapCamera cam;
   cam.id = 1;
   cam.model = "PINHOLE";
   cam.width = K.width;
   cam.height = K.height;
   cam.params = {K.fx, K.fy, K.cx, K.cy};
-  model.cameras.push_back(cam);
+  return cam;
+}
+
+gs::io::ColmapModel make_colmap_model(const std::vector<ViewSetup>& views, const std::vector<std::string>& names,
+                                      const std::vector<SparsePoint>& points) {
+  gs::io::ColmapModel model;
+  model.cameras.push_back(colmap_pinhole(views.front().camera.intr));
   model.images.resize(views.size());
   for (size_t v = 0; v < views.size(); ++v) {
     gs::io::ColmapImage& im = model.images[v];
@@ -183,8 +186,6 @@ std::string view_name(int index, int digits, const std::string& extension) {
 
 namespace {
 
-using detail::focal_for;
-using detail::look_at;
 using detail::synth_intrinsics;
 using detail::ViewSetup;
 
@@ -353,12 +354,7 @@ std::vector<gs::Camera> make_path_cameras(const PathOptions& o) {
                            kTarget[1] + radius * std::cos(el) * std::sin(az), kTarget[2] + radius * std::sin(el)};
     const double at[3] = {kTarget[0] + 0.15 * std::sin(4.0 * kPi * s), kTarget[1] + 0.1 * std::cos(3.0 * kPi * s),
                           kTarget[2] + 0.08 * std::sin(5.0 * kPi * s)};
-    double q[4], t[3];
-    gs::io::pose_to_colmap(look_at(eye, at), q, t);
-    gs::Camera cam;
-    cam.intr = intr;
-    cam.pose = gs::io::pose_from_colmap(q, t);
-    cams.push_back(cam);
+    cams.push_back(detail::make_view(intr, eye, at).camera);
   }
   return cams;
 }
@@ -376,13 +372,7 @@ gs::Status generate_path(const PathOptions& o, const std::string& out_dir) {
   if (ec) return gs::io_error("synth path: cannot create " + frames.string() + ": " + ec.message());
 
   gs::io::ColmapModel model;
-  gs::io::ColmapCamera cam;
-  cam.id = 1;
-  cam.model = "PINHOLE";
-  cam.width = o.width;
-  cam.height = o.height;
-  cam.params = {cams[0].intr.fx, cams[0].intr.fy, cams[0].intr.cx, cams[0].intr.cy};
-  model.cameras.push_back(cam);
+  model.cameras.push_back(detail::colmap_pinhole(cams[0].intr));
   for (int i = 0; i < o.frames; ++i) {
     char name[32];
     std::snprintf(name, sizeof name, "frame_%06d.png", i);
