@@ -52,7 +52,9 @@ struct TransformsFile {
 // A nerfstudio "camera_model" other than OPENCV, PINHOLE or SIMPLE_PINHOLE (fisheye,
 // equirectangular) and non-zero k3/k4 are refused (kUnsupported). "applied_transform" and
 // "applied_scale" are not read: they say how the file's frame relates to the capture it was
-// converted from, and the frames and the PLY points are both already in the file's frame.
+// converted from, and the frames and the PLY points are both already in the file's frame. Nor are
+// instant-ngp's "aabb_scale", "scale" and "offset" (its own normalisation of the scene) or any
+// other key (NeRF's "rotation", nerfstudio's "depth_file_path", ...).
 // Errors name `source`, the frame index and the key.
 Status parse_transforms_json(const std::string& text, const std::string& source, TransformsFile* out);
 
