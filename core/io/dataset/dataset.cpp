@@ -221,7 +221,7 @@ struct TransformsInput {
 };
 
 // Matches a split list's entries to frames (by cleaned path, with or without the resolved
-// extension); the frames' indices in `specs`.
+// extension); the indices of those views in Source::views.
 Status split_indices(const std::vector<std::string>& list, const char* key, const std::string& source,
                      const std::map<std::string, size_t>& by_name, std::set<size_t>* out) {
   for (const std::string& entry : list) {
