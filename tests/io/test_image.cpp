@@ -107,7 +107,8 @@ TEST_CASE("hostile image bytes give errors and not crashes") {
 
 TEST_CASE("fuzz findings: JPEG Huffman tables over 256 codes and PNG chunks longer than the file are refused before stb") {
   // Inputs found by fuzz/fuzz_image (kept in its seed corpus): Debian 12's stb_image wrote past a
-  // Huffman table's arrays, and sized a buffer from a PNG chunk's declared length (1.8 GB).
+  // Huffman table's arrays, sized a buffer from a PNG chunk's declared length (1.8 GB), and copied an
+  // empty IDAT chunk to a null buffer (memcpy(NULL, ..., 0), undefined).
   const struct {
     const char* file;
     const char* expect;
@@ -116,7 +117,8 @@ TEST_CASE("fuzz findings: JPEG Huffman tables over 256 codes and PNG chunks long
                {"dht_overflow_header_cut.jpg", "more than 256"},
                {"png_huge_idat.png", "corrupt PNG: chunk 'IDAT'"},
                {"scan_undefined_table.jpg", "uses a Huffman table that no DHT segment defines"},
-               {"huff_decode_negative_index.jpg", "uses a Huffman table that no DHT segment defines"}};
+               {"huff_decode_negative_index.jpg", "uses a Huffman table that no DHT segment defines"},
+               {"empty_idat_before_data.png", "an empty IDAT chunk at byte 3349 before any image data"}};
   for (const auto& c : cases) {
     const std::string path = std::string(GS_SOURCE_DIR) + "/fuzz/corpus/image/" + c.file;
     const Expected<std::vector<uint8_t>> bytes = platform::read_file(path);

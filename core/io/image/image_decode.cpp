@@ -94,14 +94,21 @@ Status check_jpeg_huffman_tables(const uint8_t* d, size_t n, const std::string& 
 // stb_image sizes its buffer for a PNG data chunk from the chunk's declared length before reading
 // it, so a 2 KB file declaring a 1.8 GB IDAT made it allocate 1.8 GB (found by fuzz/fuzz_image).
 // Every chunk must fit in the file.
+// An empty IDAT chunk before any image data makes stb copy 0 bytes to its not yet allocated data
+// buffer, memcpy(NULL, ..., 0), which is undefined (found by fuzz/fuzz_image); encoders do not write
+// empty IDAT chunks, so such a file is refused.
 Status check_png_chunks(const uint8_t* d, size_t n, const std::string& source) {
   size_t p = 8;  // after the signature
+  bool image_data = false;
   while (p + 8 <= n) {
     const uint64_t len = (uint64_t(d[p]) << 24) | (uint64_t(d[p + 1]) << 16) | (uint64_t(d[p + 2]) << 8) | d[p + 3];
     const std::string type(reinterpret_cast<const char*>(d + p + 4), 4);
     if (len > n - p - 8)
       return parse_error(source + ": corrupt PNG: chunk '" + type + "' at byte " + std::to_string(p) + " declares " +
                          std::to_string(len) + " bytes, but only " + std::to_string(n - p - 8) + " follow");
+    if (type == "IDAT" && len == 0 && !image_data)
+      return parse_error(source + ": corrupt PNG: an empty IDAT chunk at byte " + std::to_string(p) + " before any image data");
+    image_data = image_data || (type == "IDAT" && len > 0);
     if (type == "IEND") break;
     p += 12 + size_t(len);  // length, type, data, CRC
   }
