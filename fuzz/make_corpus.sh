@@ -11,7 +11,7 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 out=corpus
 rm -rf "$out"
-mkdir -p "$out"/{colmap_text,colmap_binary,ply,splat,spz,compressed_ply,image,model,compact,checkpoint,video}
+mkdir -p "$out"/{colmap_text,colmap_binary,ply,splat,spz,compressed_ply,image,model,compact,checkpoint,video,transforms,point_ply}
 
 # A tiny scene: 3 views of 40x32 (LPIPS needs 31 px a side) (view 0 is the test view, so 2 train views, as the checkpoint
 # harness's trainer has) and 30 points; a 2-iteration run with the harness's budgets.
@@ -47,6 +47,35 @@ PY
 
 # .splat, .spz and compressed.ply: tiny files of each layout (fuzz/make_splat_corpus.py).
 python3 make_splat_corpus.py "$out"
+
+# transforms.json: the object capture's training file, a nerfstudio-style and a NeRF-synthetic-style
+# file, and two broken ones (a bad frame, a syntax error).
+"$hbgs" synth --object --out "$tmp/object" --width 24 --height 24 --views 3 --points 20 --quiet >/dev/null
+cp "$tmp/object/transforms_train.json" "$out/transforms/synth_object_train.json"
+cat >"$out/transforms/nerfstudio.json" <<'JSON'
+{"camera_model": "OPENCV", "fl_x": 20, "fl_y": 21, "cx": 8, "cy": 6, "w": 16, "h": 12, "k1": 0.01, "k2": 0, "p1": 0, "p2": 0,
+ "applied_transform": [[0, 1, 0, 0], [1, 0, 0, 0], [0, 0, -1, 0]], "ply_file_path": "sparse_pc.ply",
+ "train_filenames": ["images/f0.png"], "val_filenames": [], "test_filenames": ["images/f1.png"],
+ "frames": [{"file_path": "images/f0.png", "mask_path": "masks/f0.png", "transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]},
+            {"file_path": "images/f1.png", "fl_x": 30, "w": 16, "transform_matrix": [[0, -1, 0, 1], [1, 0, 0, 2], [0, 0, 1, 3]]}]}
+JSON
+printf '{"camera_angle_x": 0.6911112070083618, "frames": [{"file_path": "./train/r_0", "rotation": 0.012566370614359171, "transform_matrix": [[-0.9999, 0.0042, -0.0134, -0.0538], [-0.0140, -0.2997, 0.9539, 3.8454], [0, 0.9540, 0.2997, 1.2081], [0, 0, 0, 1]]}]}\n' >"$out/transforms/nerf_synthetic.json"
+printf '{"frames": [{"file_path": "../escape", "transform_matrix": [[2, 0, 0, 0], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]]}]}\n' >"$out/transforms/bad_frame.json"
+printf '{"frames": [\n  {"file_path": "a",, }]}\n' >"$out/transforms/syntax_error.json"
+
+# Point-cloud PLY: nerfstudio's ascii layout, and binary doubles with an extra property and faces.
+printf 'ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nproperty uint8 red\nproperty uint8 green\nproperty uint8 blue\nend_header\n0.1 0.2 0.3 255 0 7\n-1 -2 -3 1 2 3\n' >"$out/point_ply/ascii_rgb.ply"
+python3 - "$out/point_ply/binary_double.ply" <<'PY'
+import struct, sys
+head = ("ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty double x\nproperty double y\nproperty double z\n"
+        "property float nx\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement face 1\n"
+        "property list uchar int vertex_indices\nend_header\n")
+with open(sys.argv[1], "wb") as f:
+    f.write(head.encode())
+    for i in range(2):
+        f.write(struct.pack("<dddfBBB", 1.5 + i, -2.0, 3.0, 0.5, 10, 20, 30))
+    f.write(bytes([3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]))
+PY
 
 # Images: PNG from synth, the same as JPEG (FFmpeg), and a 2x2 grey PNG.
 cp "$tmp/scene/images/0000.png" "$out/image/view.png"

@@ -5,7 +5,7 @@
 #   scripts/fuzz.sh brief [seconds]    every harness for a few seconds (default 5): what CI runs
 #   scripts/fuzz.sh long [runs]        every harness for a number of executions (default 1000000)
 #   scripts/fuzz.sh long [runs] NAME.. only the named harnesses (colmap_text colmap_binary ply image
-#                                      model checkpoint video)
+#                                      model compact checkpoint transforms point_ply video)
 # Prints each harness's execution count, rate and new corpus entries; any crash, leak, UBSan report
 # or timeout fails the script, and the input that caused it is kept (the path and the command that
 # reproduces it are printed). Work goes to build/fuzz-work/ (not the repository).

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
-// `hbgs synth`: writes the built-in ray-traced ground-truth scene as a COLMAP dataset (via
-// hbgs_synth), refusing to overwrite an existing dataset unless --force is given.
+// `hbgs synth`: writes the built-in ray-traced ground-truth scene, or with --object an object
+// capture (COLMAP + transforms.json, alpha or masks), as a dataset (via hbgs_synth), refusing to
+// overwrite an existing dataset unless --force is given.
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -28,6 +29,10 @@ struct SynthArgs {
   bool quiet = false;
   int path_frames = 0;  // > 0: render a camera path (frames + true poses) instead of the dataset
   double path_sweep = 100.0;
+  bool object = false;  // the object capture instead of the scene
+  int views = 48;
+  std::string object_background = "transparent";
+  bool size_given = false, points_given = false;
 };
 
 #ifdef HBGS_HAVE_SYNTH
@@ -43,7 +48,7 @@ int prepare_output(const SynthArgs& a) {
   if (fs::exists(root, ec) && !fs::is_directory(root, ec))
     return fail("synth", a.out + " exists and is not a directory");
   const fs::path sparse = root / "sparse" / "0", images = root / "images";
-  const bool has_dataset = fs::exists(sparse, ec) || fs::exists(images, ec);
+  const bool has_dataset = fs::exists(sparse, ec) || fs::exists(images, ec) || fs::exists(root / "transforms_train.json", ec);
   if (has_dataset && !a.force)
     return fail("synth", a.out + " already holds a dataset (" + (fs::exists(sparse, ec) ? sparse : images).string() +
                              " exists); pass --force to overwrite it");
@@ -53,7 +58,39 @@ int prepare_output(const SynthArgs& a) {
       if (fs::exists(p, ec) && !fs::remove(p, ec))
         return fail("synth", "cannot remove the stale " + p.string() + ": " + ec.message());
     }
+    // The object capture's images change extension with its background (png / jpg) and masks/ is
+    // searched by name: a previous capture's files would be read in place of the new ones.
+    if (a.object) {
+      for (const fs::path& p : {root / "images", root / "masks", root / "transforms_train.json", root / "transforms_test.json"}) {
+        fs::remove_all(p, ec);
+        if (ec) return fail("synth", "cannot remove the previous " + p.string() + ": " + ec.message());
+      }
+    }
   }
+  return kExitOk;
+}
+
+// `--object`: the object capture.
+int run_synth_object(const SynthArgs& a) {
+  if (int rc = prepare_output(a); rc != kExitOk) return rc;
+  hbgs::synth::ObjectOptions o;
+  o.seed = a.seed;
+  if (a.size_given) o.width = a.width, o.height = a.height;
+  if (a.points_given) o.num_points = a.points;
+  o.views = a.views;
+  o.threads = a.threads;
+  o.verbose = !a.quiet;
+  if (a.object_background == "cluttered") o.background = hbgs::synth::ObjectOptions::Background::kCluttered;
+  gs::Expected<hbgs::synth::ObjectSummary> summary = hbgs::synth::generate_object(o, a.out);
+  if (!summary.ok()) return fail("synth", summary.status().to_string());
+  const fs::path root(a.out);
+  std::printf("hbgs synth --object: %d views (%d test) of %dx%d, %s background, %d sparse points, seed %llu, %.2f s "
+              "(rendering %.2f s)\n",
+              summary->num_views, summary->num_test_views, o.width, o.height, a.object_background.c_str(), summary->num_points,
+              static_cast<unsigned long long>(a.seed), summary->seconds, summary->render_seconds);
+  std::printf("  images:     %s\n  masks:      %s\n  model:      %s\n  transforms: %s, %s\n",
+              (root / "images").string().c_str(), (root / "masks").string().c_str(), (root / "sparse" / "0").string().c_str(),
+              (root / "transforms_train.json").string().c_str(), (root / "transforms_test.json").string().c_str());
   return kExitOk;
 }
 
@@ -81,6 +118,8 @@ int run_synth_path(const SynthArgs& a) {
 }
 
 int run_synth(const SynthArgs& a) {
+  if (a.object && a.path_frames > 0) return fail("synth", "--object and --path-frames exclude each other");
+  if (a.object) return run_synth_object(a);
   if (a.path_frames > 0) return run_synth_path(a);
   if (int rc = prepare_output(a); rc != kExitOk) return rc;
   hbgs::synth::SynthOptions o;
@@ -117,15 +156,21 @@ Command add_synth_command(CLI::App& parent) {
   CLI::App* sub = parent.add_subcommand("synth", "Write the built-in ray-traced test scene as a COLMAP dataset");
   sub->add_option("--out", args->out, "Output dataset folder (gets images/ and sparse/0/)")->required();
   sub->add_option("--seed", args->seed, "Scene seed (layout, textures, camera jitter, points)")->capture_default_str();
-  sub->add_option("--width", args->width, "Image width, pixels")->capture_default_str()->check(CLI::Range(1, 16384));
-  sub->add_option("--height", args->height, "Image height, pixels")->capture_default_str()->check(CLI::Range(1, 16384));
+  CLI::Option* width = sub->add_option("--width", args->width, "Image width, pixels (--object: 200)")
+                           ->capture_default_str()
+                           ->check(CLI::Range(1, 16384));
+  CLI::Option* height = sub->add_option("--height", args->height, "Image height, pixels (--object: 200)")
+                            ->capture_default_str()
+                            ->check(CLI::Range(1, 16384));
   sub->add_option("--views-arc", args->views_arc, "Views on the forward-facing arc")
       ->capture_default_str()
       ->check(CLI::Range(0, 100000));
   sub->add_option("--views-orbit", args->views_orbit, "Views on the full orbit")
       ->capture_default_str()
       ->check(CLI::Range(0, 100000));
-  sub->add_option("--points", args->points, "Sparse SfM points to write")->capture_default_str()->check(CLI::Range(0, 10000000));
+  CLI::Option* points = sub->add_option("--points", args->points, "Sparse SfM points to write (--object: 5000, on the object)")
+                            ->capture_default_str()
+                            ->check(CLI::Range(0, 10000000));
   sub->add_option("--threads", args->threads, "Worker threads (0: all CPUs; output does not depend on it)")
       ->capture_default_str()
       ->check(CLI::Range(0, 4096));
@@ -136,9 +181,27 @@ Command add_synth_command(CLI::App& parent) {
   sub->add_option("--path-sweep", args->path_sweep, "Azimuth the path sweeps, degrees")
       ->capture_default_str()
       ->check(CLI::Range(1.0, 360.0));
-  sub->add_flag("--force", args->force, "Overwrite an existing dataset in --out");
+  sub->add_flag("--object", args->object,
+                "Instead of the scene, an object capture: a small textured object on a pedestal seen from cameras on the "
+                "upper hemisphere (three rings, 360 degrees), written as a COLMAP dataset (images/, masks/, sparse/0) and "
+                "as transforms_train.json / transforms_test.json (every 8th view is a test view)");
+  sub->add_option("--views", args->views, "--object: number of views")->capture_default_str()->check(CLI::Range(3, 100000));
+  sub->add_option("--object-background", args->object_background,
+                  "--object: transparent (RGBA PNG images, alpha = coverage) or cluttered (RGB JPEG images of the object "
+                  "on a textured, cluttered background; masks/ mark the object)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"transparent", "cluttered"}));
+  sub->add_flag("--force", args->force,
+                "Overwrite an existing dataset in --out (with --object, its images/, masks/ and transforms files are "
+                "removed first)");
   sub->add_flag("-q,--quiet", args->quiet, "No progress output, only the summary");
-  return {sub, [args] { return run_synth(*args); }};
+  return {sub, [args, width, height, points] {
+            args->size_given = width->count() > 0 || height->count() > 0;
+            args->points_given = points->count() > 0;
+            if (args->object && args->size_given && (width->count() == 0 || height->count() == 0))
+              return fail("synth", "--object: give both --width and --height (default 200x200)");
+            return run_synth(*args);
+          }};
 }
 
 }  // namespace hbgs::cli

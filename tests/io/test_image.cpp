@@ -107,7 +107,8 @@ TEST_CASE("hostile image bytes give errors and not crashes") {
 
 TEST_CASE("fuzz findings: JPEG Huffman tables over 256 codes and PNG chunks longer than the file are refused before stb") {
   // Inputs found by fuzz/fuzz_image (kept in its seed corpus): Debian 12's stb_image wrote past a
-  // Huffman table's arrays, and sized a buffer from a PNG chunk's declared length (1.8 GB).
+  // Huffman table's arrays, sized a buffer from a PNG chunk's declared length (1.8 GB), and copied an
+  // empty IDAT chunk to a null buffer (memcpy(NULL, ..., 0), undefined).
   const struct {
     const char* file;
     const char* expect;
@@ -116,7 +117,8 @@ TEST_CASE("fuzz findings: JPEG Huffman tables over 256 codes and PNG chunks long
                {"dht_overflow_header_cut.jpg", "more than 256"},
                {"png_huge_idat.png", "corrupt PNG: chunk 'IDAT'"},
                {"scan_undefined_table.jpg", "uses a Huffman table that no DHT segment defines"},
-               {"huff_decode_negative_index.jpg", "uses a Huffman table that no DHT segment defines"}};
+               {"huff_decode_negative_index.jpg", "uses a Huffman table that no DHT segment defines"},
+               {"empty_idat_before_data.png", "an empty IDAT chunk at byte 3349 before any image data"}};
   for (const auto& c : cases) {
     const std::string path = std::string(GS_SOURCE_DIR) + "/fuzz/corpus/image/" + c.file;
     const Expected<std::vector<uint8_t>> bytes = platform::read_file(path);
@@ -182,6 +184,60 @@ TEST_CASE("image_from_float_rgb clamps and rounds") {
   CHECK(img.pixels[3] == 255);
   CHECK(img.pixels[4] == 255);
   CHECK(img.pixels[5] == 0);
+}
+
+}  // namespace
+}  // namespace gs::io
+
+namespace gs::io {
+namespace {
+
+TEST_CASE("decode as stored keeps alpha; read_image_info; JPEG encode round trip") {
+  test::TempDir dir;
+  const Image8 rgba = random_image(7, 5, 4, 3), rgb = random_image(7, 5, 3, 4), grey = random_image(7, 5, 1, 5);
+  Image8 grey_alpha = rgba;  // stb writes 2-channel PNGs; read back as stored they are RGBA
+  grey_alpha.channels = 2;
+  grey_alpha.pixels.resize(7 * 5 * 2);
+  REQUIRE(write_png(dir / "rgba.png", rgba).ok());
+  REQUIRE(write_png(dir / "rgb.png", rgb).ok());
+  REQUIRE(write_png(dir / "grey.png", grey).ok());
+  REQUIRE(write_png(dir / "ga.png", grey_alpha).ok());
+  auto a = read_image(dir / "rgba.png", kChannelsAsStored);
+  REQUIRE(a.ok());
+  CHECK(a->channels == 4);
+  CHECK(a->pixels == rgba.pixels);
+  auto b = read_image(dir / "rgb.png", kChannelsAsStored);
+  REQUIRE(b.ok());
+  CHECK(b->channels == 3);
+  CHECK(b->pixels == rgb.pixels);
+  auto g = read_image(dir / "grey.png", kChannelsAsStored);
+  REQUIRE(g.ok());
+  CHECK(g->channels == 3);  // grey is expanded to RGB
+  CHECK(g->pixels[0] == grey.pixels[0]);
+  CHECK(g->pixels[2] == grey.pixels[0]);
+  auto ga = read_image(dir / "ga.png", kChannelsAsStored);
+  REQUIRE(ga.ok());
+  CHECK(ga->channels == 4);
+  CHECK(ga->pixels[3] == grey_alpha.pixels[1]);
+  for (const auto& [name, alpha] : {std::pair<const char*, bool>{"rgba.png", true}, {"rgb.png", false}, {"grey.png", false}, {"ga.png", true}}) {
+    auto info = read_image_info(dir / name);
+    REQUIRE(info.ok());
+    CHECK(info->width == 7);
+    CHECK(info->height == 5);
+    CHECK(info->has_alpha == alpha);
+  }
+  check_error(read_image_info(dir / "missing.png").status(), {dir / "missing.png"});
+  // JPEG: smooth images come back within a few levels; RGBA and bad qualities are refused.
+  const Image8 smooth = gradient_image(32, 24);
+  REQUIRE(write_jpeg(dir / "s.jpg", smooth, 95).ok());
+  auto j = read_image(dir / "s.jpg", kChannelsAsStored);
+  REQUIRE(j.ok());
+  CHECK(j->channels == 3);
+  double err = 0;
+  for (size_t i = 0; i < smooth.pixels.size(); ++i) err += std::abs(int(j->pixels[i]) - int(smooth.pixels[i]));
+  CHECK(err / double(smooth.pixels.size()) < 2.0);
+  check_error(encode_jpeg(rgba).status(), {"encode_jpeg", "1 or 3 channels"});
+  check_error(encode_jpeg(rgb, 0).status(), {"quality 0"});
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "dataset_parts.h"
 #include "gs/io/colmap.h"
 #include "gs/io/image.h"
 #include "hbgs/synth.h"
@@ -18,22 +19,11 @@
 #include "view_math.h"
 
 namespace hbgs::synth {
-namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-// Point every camera looks at (plus jitter), metres: the middle of the object layout.
-constexpr double kTarget[3] = {0.1, 0.2, 0.45};
+namespace detail {
 
-struct ViewSetup {
-  gs::Camera camera;  // pose = pose_from_colmap(qvec, tvec)
-  double qvec[4];
-  double tvec[3];
-};
-
-// fx = fy = 0.9 width rounded to a quarter pixel so it is exact in the float PinholeIntrinsics.
 double focal_for(int width) { return std::round(0.9 * width * 4.0) / 4.0; }
 
-// The one shared camera of every synth view: fx = fy = focal_for(width), principal point centred.
 gs::PinholeIntrinsics synth_intrinsics(int width, int height) {
   gs::PinholeIntrinsics intr;
   intr.width = width;
@@ -44,7 +34,6 @@ gs::PinholeIntrinsics synth_intrinsics(int width, int height) {
   return intr;
 }
 
-// World-to-camera pose looking from `eye` at `at` with world +z as up (camera y points down).
 gs::Pose look_at(const double eye[3], const double at[3]) {
   double f[3] = {at[0] - eye[0], at[1] - eye[1], at[2] - eye[2]};
   double fn = std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
@@ -67,6 +56,143 @@ gs::Pose look_at(const double eye[3], const double at[3]) {
   return pose;
 }
 
+ViewSetup make_view(const gs::PinholeIntrinsics& intr, const double eye[3], const double at[3]) {
+  ViewSetup v;
+  gs::io::pose_to_colmap(look_at(eye, at), v.qvec, v.tvec);
+  v.camera.intr = intr;
+  v.camera.pose = gs::io::pose_from_colmap(v.qvec, v.tvec);
+  return v;
+}
+
+std::vector<SparsePoint> sample_sparse_points(const Scene& scene, const std::vector<ViewSetup>& views,
+                                              const std::vector<gs::io::Image8>& images, int num_points, float noise,
+                                              uint64_t seed, int threads, const std::function<bool(const SceneHit&)>& accept,
+                                              long long* draws_out) {
+  const int num_views = int(views.size());
+  const gs::PinholeIntrinsics& K = views.front().camera.intr;
+  const int W = K.width, H = K.height;
+  std::vector<ViewRays> rays;
+  rays.reserve(size_t(num_views));
+  for (const ViewSetup& v : views) rays.emplace_back(v.camera);
+  const double fx = K.fx, fy = K.fy, cx = K.cx, cy = K.cy;
+
+  Rng prng(hash_combine(seed, 0x90175ULL));
+  std::vector<SparsePoint> accepted;
+  accepted.reserve(size_t(num_points));
+  const int batch = 1024;
+  const long long max_draws = 200LL * num_points + 10000;
+  long long draws = 0;
+  std::vector<SparsePoint> cands;
+  std::vector<double> surface;  // [batch, 3] noise-free hit points used for the visibility test
+  while (int(accepted.size()) < num_points && draws < max_draws) {
+    cands.clear();
+    surface.clear();
+    while (int(cands.size()) < batch && draws < max_draws) {
+      ++draws;
+      int v = prng.below(num_views);
+      int x = prng.below(W), y = prng.below(H);
+      double o[3], d[3];
+      rays[size_t(v)].ray(x + 0.5, y + 0.5, o, d);
+      SceneHit hit;
+      if (!scene.intersect(o, d, &hit)) continue;
+      if (!accept(hit)) continue;
+      SparsePoint c;
+      for (int k = 0; k < 3; ++k) c.xyz[k] = hit.position[k] + double(noise) * prng.normal();
+      const gs::io::Image8& img = images[size_t(v)];
+      const uint8_t* px = &img.pixels[(size_t(y) * size_t(W) + size_t(x)) * size_t(img.channels)];
+      std::copy(px, px + 3, c.rgb);
+      cands.push_back(std::move(c));
+      surface.insert(surface.end(), hit.position, hit.position + 3);
+    }
+    parallel_for(int(cands.size()), threads, [&](int i) {
+      SparsePoint& c = cands[size_t(i)];
+      const double* s = &surface[3 * size_t(i)];
+      for (int v = 0; v < num_views; ++v) {
+        Projection p = project(views[size_t(v)].camera.pose, fx, fy, cx, cy, c.xyz);
+        if (!(p.cam[2] > 1e-6) || !(p.u >= 0 && p.u < W && p.v >= 0 && p.v < H)) continue;
+        // Visibility of the noise-free surface point: nothing may lie between the camera centre
+        // and it, up to a tolerance (1 mm + 1e-4 of the distance) that absorbs float round-off
+        // of the hit itself.
+        const double* ctr = rays[size_t(v)].centre();
+        double dir[3] = {s[0] - ctr[0], s[1] - ctr[1], s[2] - ctr[2]};
+        double dist = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+        for (double& e : dir) e /= dist;
+        if (scene.occluded(ctr, dir, dist - (1e-3 + 1e-4 * dist))) continue;
+        c.track.push_back({uint32_t(v), p.u, p.v});
+      }
+    });
+    // COLMAP only keeps points triangulated from at least two views (one if there is one view).
+    const size_t min_track = num_views > 1 ? 2 : 1;
+    for (SparsePoint& c : cands) {
+      if (int(accepted.size()) >= num_points) break;
+      if (c.track.size() >= min_track) accepted.push_back(std::move(c));
+    }
+  }
+  if (draws_out) *draws_out = draws;
+  return accepted;
+}
+
+gs::io::ColmapCamera colmap_pinhole(const gs::PinholeIntrinsics& K) {
+  gs::io::ColmapCamera cam;
+  cam.id = 1;
+  cam.model = "PINHOLE";
+  cam.width = K.width;
+  cam.height = K.height;
+  cam.params = {K.fx, K.fy, K.cx, K.cy};
+  return cam;
+}
+
+gs::io::ColmapModel make_colmap_model(const std::vector<ViewSetup>& views, const std::vector<std::string>& names,
+                                      const std::vector<SparsePoint>& points) {
+  gs::io::ColmapModel model;
+  model.cameras.push_back(colmap_pinhole(views.front().camera.intr));
+  model.images.resize(views.size());
+  for (size_t v = 0; v < views.size(); ++v) {
+    gs::io::ColmapImage& im = model.images[v];
+    im.id = uint32_t(v + 1);
+    std::copy(views[v].qvec, views[v].qvec + 4, im.qvec);
+    std::copy(views[v].tvec, views[v].tvec + 3, im.tvec);
+    im.camera_id = 1;
+    im.name = names[v];
+  }
+  model.points.resize(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    const SparsePoint& c = points[i];
+    gs::io::ColmapPoint3D& pt = model.points[i];
+    pt.id = uint64_t(i + 1);
+    std::copy(c.xyz, c.xyz + 3, pt.xyz);
+    std::copy(c.rgb, c.rgb + 3, pt.rgb);
+    pt.error = 0.0;  // observations are exact projections
+    for (const Observation& ob : c.track) {
+      gs::io::ColmapImage& im = model.images[ob.view];
+      gs::io::ColmapPoint2D p2;
+      p2.xy[0] = ob.u;
+      p2.xy[1] = ob.v;
+      p2.point3d_id = int64_t(pt.id);
+      pt.track.push_back({im.id, uint32_t(im.points2d.size())});
+      im.points2d.push_back(p2);
+    }
+  }
+  return model;
+}
+
+std::string view_name(int index, int digits, const std::string& extension) {
+  std::string s = std::to_string(index);
+  if (int(s.size()) < digits) s.insert(0, size_t(digits - int(s.size())), '0');
+  return s + extension;
+}
+
+}  // namespace detail
+
+namespace {
+
+using detail::synth_intrinsics;
+using detail::ViewSetup;
+
+constexpr double kPi = 3.14159265358979323846;
+// Point every camera looks at (plus jitter), metres: the middle of the object layout.
+constexpr double kTarget[3] = {0.1, 0.2, 0.45};
+
 std::vector<ViewSetup> make_views(const SynthOptions& opt) {
   detail::Rng rng(detail::hash_combine(opt.seed, 0xca3e7a5ULL));
   const gs::PinholeIntrinsics intr = synth_intrinsics(opt.width, opt.height);
@@ -79,14 +205,7 @@ std::vector<ViewSetup> make_views(const SynthOptions& opt) {
                      kTarget[2] + radius * std::sin(el) + rng.uniform(-0.06, 0.06)};
     double at[3] = {kTarget[0] + rng.uniform(-0.08, 0.08), kTarget[1] + rng.uniform(-0.08, 0.08),
                     kTarget[2] + rng.uniform(-0.05, 0.05)};
-    ViewSetup v;
-    gs::Pose pose = look_at(eye, at);
-    // Round-trip through the COLMAP parameterisation so the pose used for rendering is exactly the
-    // one a reader of images.txt reconstructs.
-    gs::io::pose_to_colmap(pose, v.qvec, v.tvec);
-    v.camera.intr = intr;
-    v.camera.pose = gs::io::pose_from_colmap(v.qvec, v.tvec);
-    views.push_back(v);
+    views.push_back(detail::make_view(intr, eye, at));
   };
   // Forward-facing arc: 80 degrees centred on the -y side, low elevation, ~4.6 m away.
   for (int i = 0; i < opt.arc_views; ++i) {
@@ -123,23 +242,6 @@ gs::Status validate(const SynthOptions& o) {
   return gs::Status::Ok();
 }
 
-struct Observation {
-  uint32_t view;
-  double u, v;
-};
-
-struct Candidate {
-  double xyz[3];  // stored position (surface point + noise), metres
-  uint8_t rgb[3];
-  std::vector<Observation> track;
-};
-
-std::string image_name(int index, int digits) {
-  std::string s = std::to_string(index);
-  if (int(s.size()) < digits) s.insert(0, size_t(digits - int(s.size())), '0');
-  return s + ".png";
-}
-
 gs::Expected<SynthSummary> generate_impl(const SynthOptions& opt, const std::string& out_dir) {
   using clock = std::chrono::steady_clock;
   auto t0 = clock::now();
@@ -161,110 +263,24 @@ gs::Expected<SynthSummary> generate_impl(const SynthOptions& opt, const std::str
   }
   if (opt.verbose) std::fprintf(stderr, "synth: rendered %d views of %dx%d in %.2f s\n", num_views, W, H, elapsed());
 
-  // 2. Sparse points: candidates come from a sequential seeded stream (surface hits of random
-  // pixel-centre rays); their tracks are computed in parallel per candidate, and candidates are
-  // accepted in stream order, so the result is independent of the thread count.
-  std::vector<detail::ViewRays> rays;
-  rays.reserve(size_t(num_views));
-  for (const ViewSetup& v : views) rays.emplace_back(v.camera);
-  const double fx = focal_for(W), cx = W / 2.0, cy = H / 2.0;
-
-  detail::Rng prng(detail::hash_combine(opt.seed, 0x90175ULL));
-  std::vector<Candidate> accepted;
-  accepted.reserve(size_t(opt.num_points));
-  const int batch = 1024;
-  const long long max_draws = 200LL * opt.num_points + 10000;
+  // 2. Sparse points on anything within 10 m of the layout centre: that is where the views overlap.
   long long draws = 0;
-  std::vector<Candidate> cands;
-  std::vector<double> surface;  // [batch, 3] noise-free hit points used for the visibility test
-  while (int(accepted.size()) < opt.num_points && draws < max_draws) {
-    cands.clear();
-    surface.clear();
-    while (int(cands.size()) < batch && draws < max_draws) {
-      ++draws;
-      int v = prng.below(num_views);
-      int x = prng.below(W), y = prng.below(H);
-      double o[3], d[3];
-      rays[size_t(v)].ray(x + 0.5, y + 0.5, o, d);
-      SceneHit hit;
-      if (!scene.intersect(o, d, &hit)) continue;
-      // Keep points within 10 m of the layout centre: that is where the views overlap.
-      if (std::hypot(hit.position[0] - kTarget[0], hit.position[1] - kTarget[1]) > 10.0) continue;
-      Candidate c;
-      for (int k = 0; k < 3; ++k) c.xyz[k] = hit.position[k] + double(opt.point_noise) * prng.normal();
-      const uint8_t* px = &images[size_t(v)].pixels[(size_t(y) * size_t(W) + size_t(x)) * 3];
-      std::copy(px, px + 3, c.rgb);
-      cands.push_back(std::move(c));
-      surface.insert(surface.end(), hit.position, hit.position + 3);
-    }
-    detail::parallel_for(int(cands.size()), opt.threads, [&](int i) {
-      Candidate& c = cands[size_t(i)];
-      const double* s = &surface[3 * size_t(i)];
-      for (int v = 0; v < num_views; ++v) {
-        detail::Projection p = detail::project(views[size_t(v)].camera.pose, fx, fx, cx, cy, c.xyz);
-        if (!(p.cam[2] > 1e-6) || !(p.u >= 0 && p.u < W && p.v >= 0 && p.v < H)) continue;
-        // Visibility of the noise-free surface point: nothing may lie between the camera centre
-        // and it, up to a tolerance (1 mm + 1e-4 of the distance) that absorbs float round-off
-        // of the hit itself.
-        const double* ctr = rays[size_t(v)].centre();
-        double dir[3] = {s[0] - ctr[0], s[1] - ctr[1], s[2] - ctr[2]};
-        double dist = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-        for (double& e : dir) e /= dist;
-        if (scene.occluded(ctr, dir, dist - (1e-3 + 1e-4 * dist))) continue;
-        c.track.push_back({uint32_t(v), p.u, p.v});
-      }
-    });
-    // COLMAP only keeps points triangulated from at least two views (one if there is one view).
-    const size_t min_track = num_views > 1 ? 2 : 1;
-    for (Candidate& c : cands) {
-      if (int(accepted.size()) >= opt.num_points) break;
-      if (c.track.size() >= min_track) accepted.push_back(std::move(c));
-    }
-  }
+  const std::vector<detail::SparsePoint> accepted = detail::sample_sparse_points(
+      scene, views, images, opt.num_points, opt.point_noise, opt.seed, opt.threads,
+      [](const SceneHit& hit) { return std::hypot(hit.position[0] - kTarget[0], hit.position[1] - kTarget[1]) <= 10.0; },
+      &draws);
   if (opt.verbose) {
     size_t obs = 0;
-    for (const Candidate& c : accepted) obs += c.track.size();
+    for (const detail::SparsePoint& c : accepted) obs += c.track.size();
     std::fprintf(stderr, "synth: %zu sparse points (mean track %.2f views) from %lld pixel draws, %.2f s\n",
                  accepted.size(), accepted.empty() ? 0.0 : double(obs) / double(accepted.size()), draws, elapsed());
   }
 
   // 3. Assemble the COLMAP model: one camera, images in view order, ids from 1.
-  gs::io::ColmapModel model;
-  gs::io::ColmapCamera cam;
-  cam.id = 1;
-  cam.model = "PINHOLE";
-  cam.width = W;
-  cam.height = H;
-  cam.params = {fx, fx, cx, cy};
-  model.cameras.push_back(cam);
   const int digits = std::max(4, int(std::to_string(num_views - 1).size()));
-  model.images.resize(size_t(num_views));
-  for (int v = 0; v < num_views; ++v) {
-    gs::io::ColmapImage& im = model.images[size_t(v)];
-    im.id = uint32_t(v + 1);
-    std::copy(views[size_t(v)].qvec, views[size_t(v)].qvec + 4, im.qvec);
-    std::copy(views[size_t(v)].tvec, views[size_t(v)].tvec + 3, im.tvec);
-    im.camera_id = 1;
-    im.name = image_name(v, digits);
-  }
-  model.points.resize(accepted.size());
-  for (size_t i = 0; i < accepted.size(); ++i) {
-    const Candidate& c = accepted[i];
-    gs::io::ColmapPoint3D& pt = model.points[i];
-    pt.id = uint64_t(i + 1);
-    std::copy(c.xyz, c.xyz + 3, pt.xyz);
-    std::copy(c.rgb, c.rgb + 3, pt.rgb);
-    pt.error = 0.0;  // observations are exact projections
-    for (const Observation& ob : c.track) {
-      gs::io::ColmapImage& im = model.images[ob.view];
-      gs::io::ColmapPoint2D p2;
-      p2.xy[0] = ob.u;
-      p2.xy[1] = ob.v;
-      p2.point3d_id = int64_t(pt.id);
-      pt.track.push_back({im.id, uint32_t(im.points2d.size())});
-      im.points2d.push_back(p2);
-    }
-  }
+  std::vector<std::string> names;
+  for (int v = 0; v < num_views; ++v) names.push_back(detail::view_name(v, digits, ".png"));
+  const gs::io::ColmapModel model = detail::make_colmap_model(views, names, accepted);
 
   // 4. Write.
   namespace fs = std::filesystem;
@@ -338,12 +354,7 @@ std::vector<gs::Camera> make_path_cameras(const PathOptions& o) {
                            kTarget[1] + radius * std::cos(el) * std::sin(az), kTarget[2] + radius * std::sin(el)};
     const double at[3] = {kTarget[0] + 0.15 * std::sin(4.0 * kPi * s), kTarget[1] + 0.1 * std::cos(3.0 * kPi * s),
                           kTarget[2] + 0.08 * std::sin(5.0 * kPi * s)};
-    double q[4], t[3];
-    gs::io::pose_to_colmap(look_at(eye, at), q, t);
-    gs::Camera cam;
-    cam.intr = intr;
-    cam.pose = gs::io::pose_from_colmap(q, t);
-    cams.push_back(cam);
+    cams.push_back(detail::make_view(intr, eye, at).camera);
   }
   return cams;
 }
@@ -361,13 +372,7 @@ gs::Status generate_path(const PathOptions& o, const std::string& out_dir) {
   if (ec) return gs::io_error("synth path: cannot create " + frames.string() + ": " + ec.message());
 
   gs::io::ColmapModel model;
-  gs::io::ColmapCamera cam;
-  cam.id = 1;
-  cam.model = "PINHOLE";
-  cam.width = o.width;
-  cam.height = o.height;
-  cam.params = {cams[0].intr.fx, cams[0].intr.fy, cams[0].intr.cx, cams[0].intr.cy};
-  model.cameras.push_back(cam);
+  model.cameras.push_back(detail::colmap_pinhole(cams[0].intr));
   for (int i = 0; i < o.frames; ++i) {
     char name[32];
     std::snprintf(name, sizeof name, "frame_%06d.png", i);

@@ -148,6 +148,7 @@ struct Scene::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
   std::vector<Object> objects;  // index = Embree geometry id
+  std::vector<bool> subject;    // per object: part of the subject (render_layers' coverage)
 
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
@@ -212,6 +213,42 @@ struct Scene::Impl {
     return ray.tfar < 0.0f;
   }
 
+  // The Embree BVH over the objects.
+  gs::Status build() {
+    device = rtcNewDevice(nullptr);
+    if (!device) {
+      return gs::Status(gs::StatusCode::kInternal,
+                        "synth: rtcNewDevice failed (Embree error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+    }
+    scene = rtcNewScene(device);
+    // Robust traversal so rays through shared triangle edges never slip between two triangles.
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+    for (size_t id = 0; id < objects.size(); ++id) {
+      const Mesh& m = objects[id].mesh;
+      RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      if (!geom) break;
+      auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                             3 * sizeof(float), m.num_vertices()));
+      auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                3 * sizeof(unsigned), m.num_triangles()));
+      if (vb && ib) {
+        std::copy(m.positions.begin(), m.positions.end(), vb);
+        std::copy(m.indices.begin(), m.indices.end(), ib);
+        rtcCommitGeometry(geom);
+        rtcAttachGeometryByID(scene, geom, unsigned(id));
+      }
+      rtcReleaseGeometry(geom);  // the scene holds its own reference
+    }
+    rtcCommitScene(scene);
+    RTCError err = rtcGetDeviceError(device);
+    if (err != RTC_ERROR_NONE) {
+      return gs::Status(gs::StatusCode::kInternal, "synth: building the Embree scene failed (Embree error " +
+                                                       std::to_string(int(err)) + ")");
+    }
+    return gs::Status::Ok();
+  }
+
   // Full hit record: position on the double-precision ray, facing shading normal.
   bool intersect(Vec3 o, Vec3 d, SceneHit* hit, Vec3* ng_facing) const {
     RawHit raw;
@@ -237,10 +274,13 @@ struct Scene::Impl {
     return true;
   }
 
-  Vec3 radiance(Vec3 o, Vec3 d) const {
+  // Colour seen along a ray; *object = the geometry hit first (-1: the sky).
+  Vec3 radiance(Vec3 o, Vec3 d, int* object = nullptr) const {
     SceneHit hit;
     Vec3 ng;
+    if (object) *object = -1;
     if (!intersect(o, d, &hit, &ng)) return sky(d);
+    if (object) *object = hit.object;
     const Object& obj = objects[size_t(hit.object)];
     Vec3 p{hit.position[0], hit.position[1], hit.position[2]};
     Vec3 n{hit.normal[0], hit.normal[1], hit.normal[2]};
@@ -265,18 +305,20 @@ struct Scene::Impl {
 Scene::Scene(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Scene::~Scene() = default;
 
-gs::Expected<std::unique_ptr<Scene>> Scene::create(uint64_t seed) {
-  auto impl = std::make_unique<Impl>();
-  // Layout: ground plus five objects around the origin; the seed jitters their placement and
-  // rotation by a few centimetres / any angle and picks the noise fields.
-  detail::Rng rng(detail::hash_combine(seed, 0x5ce7e0b5ULL));
-  auto add = [&](Pattern pattern, Mesh mesh, double x, double y, double z, double size, double size2, double spec,
-                 double shin, bool jitter) {
+namespace {
+
+// Adds objects with a seeded placement jitter (metres) and yaw; `jitter` 0 places them exactly.
+struct LayoutBuilder {
+  std::vector<Object>* objects;
+  std::vector<bool>* subject_flags;
+  detail::Rng rng;
+  void add(Pattern pattern, Mesh mesh, double x, double y, double z, double size, double size2, double spec, double shin,
+           double jitter, bool subject) {
     Object o;
     o.pattern = pattern;
-    double jx = jitter ? rng.uniform(-0.12, 0.12) : 0.0;
-    double jy = jitter ? rng.uniform(-0.12, 0.12) : 0.0;
-    o.yaw = jitter ? rng.uniform(0.0, 2 * kPi) : 0.0;
+    const double jx = jitter > 0 ? rng.uniform(-jitter, jitter) : 0.0;
+    const double jy = jitter > 0 ? rng.uniform(-jitter, jitter) : 0.0;
+    o.yaw = jitter > 0 ? rng.uniform(0.0, 2 * kPi) : 0.0;
     o.centre[0] = x + jx;
     o.centre[1] = y + jy;
     o.centre[2] = z;
@@ -287,50 +329,71 @@ gs::Expected<std::unique_ptr<Scene>> Scene::create(uint64_t seed) {
     o.noise_seed = rng.next();
     detail::place_mesh(&mesh, o.yaw, o.centre);
     o.mesh = std::move(mesh);
-    impl->objects.push_back(std::move(o));
-  };
-  add(Pattern::kGround, detail::make_ground(kGroundHalf), 0, 0, 0, kGroundHalf, 0, 0.04, 16, false);
-  add(Pattern::kStripes, detail::make_uv_sphere(0.55, 64, 32), -1.0, -0.3, 0.55, 0.55, 0, 0.35, 48, true);
-  add(Pattern::kChecker, detail::make_box(0.38, 0.38, 0.38), 0.95, -0.55, 0.38, 0.38, 0, 0.15, 24, true);
-  add(Pattern::kBands, detail::make_cylinder(0.32, 1.3, 64), 0.25, 0.85, 0.0, 1.3, 0, 0.25, 32, true);
-  add(Pattern::kDots, detail::make_torus(0.42, 0.14, 72, 24), -1.0, 1.1, 0.14, 0.42, 0.14, 0.30, 40, true);
-  add(Pattern::kNoise, detail::make_uv_sphere(0.32, 48, 24), 1.25, 0.75, 0.32, 0.32, 0, 0.45, 64, true);
+    objects->push_back(std::move(o));
+    subject_flags->push_back(subject);
+  }
+};
 
-  impl->device = rtcNewDevice(nullptr);
-  if (!impl->device) {
-    return gs::Status(gs::StatusCode::kInternal,
-                      "synth: rtcNewDevice failed (Embree error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
-  }
-  impl->scene = rtcNewScene(impl->device);
-  // Robust traversal so rays through shared triangle edges never slip between two triangles.
-  rtcSetSceneFlags(impl->scene, RTC_SCENE_FLAG_ROBUST);
-  rtcSetSceneBuildQuality(impl->scene, RTC_BUILD_QUALITY_HIGH);
-  for (size_t id = 0; id < impl->objects.size(); ++id) {
-    const Mesh& m = impl->objects[id].mesh;
-    RTCGeometry geom = rtcNewGeometry(impl->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    if (!geom) break;
-    auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                           3 * sizeof(float), m.num_vertices()));
-    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                              3 * sizeof(unsigned), m.num_triangles()));
-    if (vb && ib) {
-      std::copy(m.positions.begin(), m.positions.end(), vb);
-      std::copy(m.indices.begin(), m.indices.end(), ib);
-      rtcCommitGeometry(geom);
-      rtcAttachGeometryByID(impl->scene, geom, unsigned(id));
+}  // namespace
+
+gs::Expected<std::unique_ptr<Scene>> Scene::create(uint64_t seed) {
+  auto impl = std::make_unique<Impl>();
+  // Layout: ground plus five objects around the origin; the seed jitters their placement and
+  // rotation by a few centimetres / any angle and picks the noise fields.
+  LayoutBuilder b{&impl->objects, &impl->subject, detail::Rng(detail::hash_combine(seed, 0x5ce7e0b5ULL))};
+  b.add(Pattern::kGround, detail::make_ground(kGroundHalf), 0, 0, 0, kGroundHalf, 0, 0.04, 16, 0, false);
+  b.add(Pattern::kStripes, detail::make_uv_sphere(0.55, 64, 32), -1.0, -0.3, 0.55, 0.55, 0, 0.35, 48, 0.12, true);
+  b.add(Pattern::kChecker, detail::make_box(0.38, 0.38, 0.38), 0.95, -0.55, 0.38, 0.38, 0, 0.15, 24, 0.12, true);
+  b.add(Pattern::kBands, detail::make_cylinder(0.32, 1.3, 64), 0.25, 0.85, 0.0, 1.3, 0, 0.25, 32, 0.12, true);
+  b.add(Pattern::kDots, detail::make_torus(0.42, 0.14, 72, 24), -1.0, 1.1, 0.14, 0.42, 0.14, 0.30, 40, 0.12, true);
+  b.add(Pattern::kNoise, detail::make_uv_sphere(0.32, 48, 24), 1.25, 0.75, 0.32, 0.32, 0, 0.45, 64, 0.12, true);
+  GS_RETURN_IF_ERROR(impl->build());
+  return std::unique_ptr<Scene>(new Scene(std::move(impl)));
+}
+
+gs::Expected<std::unique_ptr<Scene>> Scene::create_object(uint64_t seed, bool cluttered, double camera_distance) {
+  auto impl = std::make_unique<Impl>();
+  // The subject (object ids 0..5): a checkered pedestal (radius 0.5 m, 0.1 m high, base at z = 0)
+  // holding five small shapes, each nudged by up to 1.5 cm and turned by a seeded yaw. It fits in
+  // the sphere of radius kObjectRadius around kObjectCentre.
+  LayoutBuilder b{&impl->objects, &impl->subject, detail::Rng(detail::hash_combine(seed, 0x0b1ec7ULL))};
+  const double top = 0.1;
+  b.add(Pattern::kChecker, detail::make_cylinder(0.5, top, 96), 0, 0, 0, top, 0, 0.10, 16, 0, true);
+  b.add(Pattern::kStripes, detail::make_uv_sphere(0.17, 64, 32), -0.2, -0.14, top + 0.17, 0.17, 0, 0.35, 48, 0.015, true);
+  // Half side 0.12, not 0.11: the checker's cell borders (0.16 m cells offset by 0.05 m) must not lie
+  // on a face, where the parity would flip from ray to ray.
+  b.add(Pattern::kChecker, detail::make_box(0.12, 0.12, 0.12), 0.22, -0.17, top + 0.12, 0.12, 0, 0.15, 24, 0.015, true);
+  b.add(Pattern::kBands, detail::make_cylinder(0.09, 0.42, 64), 0.04, 0.22, top, 0.42, 0, 0.25, 32, 0.015, true);
+  b.add(Pattern::kDots, detail::make_torus(0.14, 0.05, 72, 24), -0.24, 0.17, top + 0.05, 0.14, 0.05, 0.30, 40, 0.015, true);
+  b.add(Pattern::kNoise, detail::make_uv_sphere(0.1, 48, 24), 0.3, 0.15, top + 0.1, 0.1, 0, 0.45, 64, 0.015, true);
+  if (cluttered) {
+    // Background: textured ground under the pedestal and clutter 1.5-2.5 camera distances out,
+    // beyond every camera, so nothing ever stands between a camera and the subject, and too low
+    // (<= 0.5 m) to shadow it under the 51-degree sun.
+    b.add(Pattern::kGround, detail::make_ground(kGroundHalf), 0, 0, 0, kGroundHalf, 0, 0.04, 16, 0, false);
+    const Pattern patterns[] = {Pattern::kStripes, Pattern::kChecker, Pattern::kBands, Pattern::kDots, Pattern::kNoise};
+    for (int i = 0; i < 14; ++i) {
+      const double az = 2 * kPi * (i + b.rng.uniform(0.0, 0.6)) / 14;
+      const double r = camera_distance * b.rng.uniform(1.5, 2.5);
+      const double x = r * std::cos(az), y = r * std::sin(az), size = b.rng.uniform(0.15, 0.25);
+      const Pattern p = patterns[i % 5];
+      switch (i % 4) {
+        case 0: b.add(p, detail::make_uv_sphere(size, 32, 16), x, y, size, size, 0, 0.3, 32, 0, false); break;
+        case 1: b.add(p, detail::make_box(size, size * 0.8, size), x, y, size, size, 0, 0.15, 24, 0, false); break;
+        case 2: b.add(p, detail::make_cylinder(size * 0.6, 2 * size, 32), x, y, 0, 2 * size, 0, 0.2, 32, 0, false); break;
+        default: b.add(p, detail::make_torus(size, size * 0.35, 48, 16), x, y, size * 0.35, size, size * 0.35, 0.3, 40, 0, false);
+      }
     }
-    rtcReleaseGeometry(geom);  // the scene holds its own reference
   }
-  rtcCommitScene(impl->scene);
-  RTCError err = rtcGetDeviceError(impl->device);
-  if (err != RTC_ERROR_NONE) {
-    return gs::Status(gs::StatusCode::kInternal, "synth: building the Embree scene failed (Embree error " +
-                                                     std::to_string(int(err)) + ")");
-  }
+  GS_RETURN_IF_ERROR(impl->build());
   return std::unique_ptr<Scene>(new Scene(std::move(impl)));
 }
 
 int Scene::num_objects() const { return int(impl_->objects.size()); }
+
+bool Scene::is_subject(int object) const {
+  return object >= 0 && object < int(impl_->subject.size()) && impl_->subject[size_t(object)];
+}
 
 bool Scene::intersect(const double origin[3], const double dir[3], SceneHit* hit) const {
   SceneHit local;
@@ -351,18 +414,30 @@ void Scene::radiance(const double origin[3], const double dir[3], float rgb[3]) 
 }
 
 gs::io::Image8 Scene::render(const gs::Camera& camera, int samples_per_axis, uint64_t jitter_seed, int threads) const {
+  gs::io::Image8 img;
+  render_layers(camera, samples_per_axis, jitter_seed, threads, &img, nullptr);
+  return img;
+}
+
+void Scene::render_layers(const gs::Camera& camera, int samples_per_axis, uint64_t jitter_seed, int threads,
+                          gs::io::Image8* composite, gs::io::Image8* subject) const {
   const int w = camera.intr.width, h = camera.intr.height;
   const int n = std::max(1, samples_per_axis);
-  gs::io::Image8 img;
-  img.width = w;
-  img.height = h;
-  img.channels = 3;
-  img.pixels.assign(size_t(w) * size_t(h) * 3, 0);
-  if (w <= 0 || h <= 0) return img;
+  const auto make = [&](gs::io::Image8* img, int channels) {
+    if (!img) return;
+    img->width = w;
+    img->height = h;
+    img->channels = channels;
+    img->pixels.assign(size_t(std::max(w, 0)) * size_t(std::max(h, 0)) * size_t(channels), 0);
+  };
+  make(composite, 3);
+  make(subject, 4);
+  if (w <= 0 || h <= 0) return;
   detail::ViewRays rays(camera);
   detail::parallel_for(h, threads, [&](int y) {
     for (int x = 0; x < w; ++x) {
-      double sum[3] = {0, 0, 0};
+      double sum[3] = {0, 0, 0}, own[3] = {0, 0, 0};  // all samples; subject samples only
+      int hits = 0;
       for (int s = 0; s < n * n; ++s) {  // n <= 16, so s < 256
         // Stratified jitter: sample s sits in sub-cell (s % n, s / n) at a hashed offset; with one
         // sample per pixel it is the pixel centre.
@@ -374,16 +449,28 @@ gs::io::Image8 Scene::render(const gs::Camera& camera, int samples_per_axis, uin
         }
         double o[3], d[3];
         rays.ray(x + ox, y + oy, o, d);
-        Vec3 c = impl_->radiance({o[0], o[1], o[2]}, {d[0], d[1], d[2]});
-        sum[0] += clamp01(c.x);
-        sum[1] += clamp01(c.y);
-        sum[2] += clamp01(c.z);
+        int object = -1;
+        const Vec3 c = impl_->radiance({o[0], o[1], o[2]}, {d[0], d[1], d[2]}, &object);
+        const double rgb[3] = {clamp01(c.x), clamp01(c.y), clamp01(c.z)};
+        const bool on_subject = is_subject(object);
+        hits += on_subject ? 1 : 0;
+        for (int ch = 0; ch < 3; ++ch) {
+          sum[ch] += rgb[ch];
+          if (on_subject) own[ch] += rgb[ch];
+        }
       }
-      uint8_t* px = &img.pixels[(size_t(y) * size_t(w) + size_t(x)) * 3];
-      for (int ch = 0; ch < 3; ++ch) px[ch] = uint8_t(std::lround(sum[ch] / (n * n) * 255.0));
+      const size_t i = size_t(y) * size_t(w) + size_t(x);
+      if (composite)
+        for (int ch = 0; ch < 3; ++ch) composite->pixels[i * 3 + size_t(ch)] = uint8_t(std::lround(sum[ch] / (n * n) * 255.0));
+      if (subject) {
+        // Straight (not premultiplied) alpha, as PNG stores it: the subject's mean colour, and the
+        // fraction of the samples that hit it.
+        for (int ch = 0; ch < 3; ++ch)
+          subject->pixels[i * 4 + size_t(ch)] = hits ? uint8_t(std::lround(own[ch] / hits * 255.0)) : 0;
+        subject->pixels[i * 4 + 3] = uint8_t(std::lround(double(hits) / (n * n) * 255.0));
+      }
     }
   });
-  return img;
 }
 
 }  // namespace hbgs::synth

@@ -26,6 +26,12 @@ constexpr int kMaxCameraSide = 100000;
 std::string check_camera(const ColmapCamera& cam);
 std::string check_pose(const double qvec[4], const double tvec[3]);
 
+// Row-major rotation of a quaternion (w, x, y, z), normalised first; identity for a zero or
+// non-finite one (the pose readers refuse those before).
+void rotation_from_quaternion(const double q[4], double R[9]);
+// Unit quaternion (w >= 0, COLMAP's sign) of a row-major rotation matrix, Shepperd's method.
+void quaternion_from_rotation(const double R[9], double q[4]);
+
 // Cross-file checks: images refer to existing cameras, tracks to existing images.
 Status check_model_links(const ColmapModel& model, const std::string& images_file, const std::string& points_file);
 

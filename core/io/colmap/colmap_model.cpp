@@ -165,14 +165,9 @@ Expected<ColmapModel> read_colmap_model(const std::string& dir) {
 
 Pose pose_from_colmap(const double qvec[4], const double tvec[3]) {
   Pose pose;
-  const double n = std::sqrt(qvec[0] * qvec[0] + qvec[1] * qvec[1] + qvec[2] * qvec[2] + qvec[3] * qvec[3]);
-  if (n > 0 && std::isfinite(n)) {
-    const double w = qvec[0] / n, x = qvec[1] / n, y = qvec[2] / n, z = qvec[3] / n;
-    const double R[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
-                         2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                         2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
-    for (int i = 0; i < 9; ++i) pose.R[i] = float(R[i]);
-  }
+  double R[9];
+  detail::rotation_from_quaternion(qvec, R);
+  for (int i = 0; i < 9; ++i) pose.R[i] = float(R[i]);
   for (int i = 0; i < 3; ++i) pose.t[i] = float(tvec[i]);
   return pose;
 }
@@ -180,6 +175,26 @@ Pose pose_from_colmap(const double qvec[4], const double tvec[3]) {
 void pose_to_colmap(const Pose& pose, double qvec[4], double tvec[3]) {
   double m[9];
   for (int i = 0; i < 9; ++i) m[i] = pose.R[i];
+  detail::quaternion_from_rotation(m, qvec);
+  for (int i = 0; i < 3; ++i) tvec[i] = pose.t[i];
+}
+
+namespace detail {
+
+void rotation_from_quaternion(const double q[4], double R[9]) {
+  const double n = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  if (!(n > 0) || !std::isfinite(n)) {
+    for (int i = 0; i < 9; ++i) R[i] = (i % 4 == 0) ? 1.0 : 0.0;
+    return;
+  }
+  const double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
+  const double m[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
+                       2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                       2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
+  for (int i = 0; i < 9; ++i) R[i] = m[i];
+}
+
+void quaternion_from_rotation(const double m[9], double q[4]) {
   // Shepperd's method: divide by the largest of the four candidate terms for stability.
   const double tr = m[0] + m[4] + m[8];
   double w, x, y, z;
@@ -199,8 +214,9 @@ void pose_to_colmap(const Pose& pose, double qvec[4], double tvec[3]) {
   double n = std::sqrt(w * w + x * x + y * y + z * z);
   if (!(n > 0) || !std::isfinite(n)) w = 1, x = y = z = 0, n = 1;
   const double sign = w < 0 ? -1.0 : 1.0;  // COLMAP keeps w >= 0
-  qvec[0] = sign * w / n, qvec[1] = sign * x / n, qvec[2] = sign * y / n, qvec[3] = sign * z / n;
-  for (int i = 0; i < 3; ++i) tvec[i] = pose.t[i];
+  q[0] = sign * w / n, q[1] = sign * x / n, q[2] = sign * y / n, q[3] = sign * z / n;
 }
+
+}  // namespace detail
 
 }  // namespace gs::io

@@ -94,14 +94,21 @@ Status check_jpeg_huffman_tables(const uint8_t* d, size_t n, const std::string& 
 // stb_image sizes its buffer for a PNG data chunk from the chunk's declared length before reading
 // it, so a 2 KB file declaring a 1.8 GB IDAT made it allocate 1.8 GB (found by fuzz/fuzz_image).
 // Every chunk must fit in the file.
+// An empty IDAT chunk before any image data makes stb copy 0 bytes to its not yet allocated data
+// buffer, memcpy(NULL, ..., 0), which is undefined (found by fuzz/fuzz_image); encoders do not write
+// empty IDAT chunks, so such a file is refused.
 Status check_png_chunks(const uint8_t* d, size_t n, const std::string& source) {
   size_t p = 8;  // after the signature
+  bool image_data = false;
   while (p + 8 <= n) {
     const uint64_t len = (uint64_t(d[p]) << 24) | (uint64_t(d[p + 1]) << 16) | (uint64_t(d[p + 2]) << 8) | d[p + 3];
     const std::string type(reinterpret_cast<const char*>(d + p + 4), 4);
     if (len > n - p - 8)
       return parse_error(source + ": corrupt PNG: chunk '" + type + "' at byte " + std::to_string(p) + " declares " +
                          std::to_string(len) + " bytes, but only " + std::to_string(n - p - 8) + " follow");
+    if (type == "IDAT" && len == 0 && !image_data)
+      return parse_error(source + ": corrupt PNG: an empty IDAT chunk at byte " + std::to_string(p) + " before any image data");
+    image_data = image_data || (type == "IDAT" && len > 0);
     if (type == "IEND") break;
     p += 12 + size_t(len);  // length, type, data, CRC
   }
@@ -113,9 +120,9 @@ Status bad_size(const std::string& source, uint64_t w, uint64_t h) {
                      std::to_string(kMaxImageSide) + " per side");
 }
 
-Expected<Image8> decode(const uint8_t* data, size_t size, int channels, const std::string& source) {
-  if (channels != 1 && channels != 3 && channels != 4)
-    return invalid_argument(source + ": cannot decode to " + std::to_string(channels) + " channels (1, 3 or 4)");
+// Checks everything stb would trust (format, chunk and table sizes, sides) and reads the header:
+// width, height and the stored channel count (1 grey, 2 grey + alpha, 3 RGB, 4 RGBA).
+Status check_header(const uint8_t* data, size_t size, const std::string& source, int* w, int* h, int* comp) {
   if (data == nullptr || size == 0) return parse_error(source + ": empty file, not an image");
   if (!looks_like_png(data, size) && !looks_like_jpeg(data, size))
     return parse_error(source + ": unknown image format (not PNG or JPEG)");
@@ -127,11 +134,19 @@ Expected<Image8> decode(const uint8_t* data, size_t size, int channels, const st
   uint64_t pw = 0, ph = 0;
   if (png_sides(data, size, &pw, &ph) && (pw == 0 || ph == 0 || pw > uint64_t(kMaxImageSide) || ph > uint64_t(kMaxImageSide)))
     return bad_size(source, pw, ph);
-  int w = 0, h = 0, comp = 0;
-  if (!stbi_info_from_memory(data, len, &w, &h, &comp))
+  if (!stbi_info_from_memory(data, len, w, h, comp))
     return parse_error(source + ": bad image header (" + stbi_failure_reason() + ")");
-  if (w <= 0 || h <= 0 || w > kMaxImageSide || h > kMaxImageSide) return bad_size(source, uint64_t(w), uint64_t(h));
+  if (*w <= 0 || *h <= 0 || *w > kMaxImageSide || *h > kMaxImageSide) return bad_size(source, uint64_t(*w), uint64_t(*h));
+  return Status::Ok();
+}
 
+Expected<Image8> decode(const uint8_t* data, size_t size, int channels, const std::string& source) {
+  if (channels != kChannelsAsStored && channels != 1 && channels != 3 && channels != 4)
+    return invalid_argument(source + ": cannot decode to " + std::to_string(channels) + " channels (1, 3 or 4)");
+  int w = 0, h = 0, comp = 0;
+  GS_RETURN_IF_ERROR(check_header(data, size, source, &w, &h, &comp));
+  if (channels == kChannelsAsStored) channels = (comp == 2 || comp == 4) ? 4 : 3;
+  const int len = int(size);
   int dw = 0, dh = 0;
   uint8_t* pixels = stbi_load_from_memory(data, len, &dw, &dh, &comp, channels);
   if (pixels == nullptr) return parse_error(source + ": cannot decode image (" + stbi_failure_reason() + ")");
@@ -157,6 +172,18 @@ Expected<Image8> decode(const uint8_t* data, size_t size, int channels, const st
 
 Expected<Image8> decode_image(const uint8_t* data, size_t size, int channels, const std::string& source) {
   return detail::guarded(source, [&]() { return decode(data, size, channels, source); });
+}
+
+Expected<ImageInfo> read_image_info(const std::string& path) {
+  return detail::guarded(path, [&]() -> Expected<ImageInfo> {
+    auto bytes = platform::read_file(path, uint64_t(1) << 30);
+    if (!bytes.ok()) return bytes.status();
+    int w = 0, h = 0, comp = 0;
+    GS_RETURN_IF_ERROR(check_header(bytes->data(), bytes->size(), path, &w, &h, &comp));
+    ImageInfo info;
+    info.width = w, info.height = h, info.has_alpha = comp == 2 || comp == 4;
+    return info;
+  });
 }
 
 Expected<Image8> read_image(const std::string& path, int channels) {

@@ -73,12 +73,67 @@ std::vector<gs::Camera> make_path_cameras(const PathOptions& options);
 // out_dir/true_poses/ (images named like the frames, no points).
 gs::Status generate_path(const PathOptions& options, const std::string& out_dir);
 
+// `hbgs synth --object`: an object capture. The subject (a checkered pedestal, radius 0.5 m and
+// 0.1 m high on z = 0, holding five small textured shapes; inside the sphere of radius
+// kObjectRadius around kObjectCentre) is ray-traced from cameras on the upper hemisphere: `views`
+// cameras in three rings (elevations 15, 35 and 60 degrees; a third of the views each, the top ring
+// gets the remainder), 360 degrees of azimuth each, every ring turned by a seeded phase, looking at
+// the centre with a few millimetres of seeded jitter from 1.1 x the distance at which the bounding
+// sphere touches the narrower side of the image (1.29 m for a square image), so the whole subject
+// is inside every image. The shared PINHOLE camera is the scene's (fx = fy = 0.9 width rounded to 1/4 px, principal
+// point centred).
+//
+// kTransparent (default): images/NNNN.png are RGBA with straight alpha = the fraction of each
+// pixel's samples_per_axis^2 jittered samples that hit the subject (0 on the background), RGB = the
+// mean colour of those samples (0 where alpha is 0); masks/NNNN.png repeat the alpha (same-name
+// masks). kCluttered: the subject stands on a textured ground among clutter (beyond the cameras,
+// so never in front of the subject, and too low to shadow it) under the sky; images/NNNN.jpg are
+// the RGB composite (JPEG quality 95) and masks/NNNN.jpg.png the subject's coverage (COLMAP's mask
+// naming).
+//
+// Both write the COLMAP model in sparse/0 (exact poses; `num_points` sparse points on the subject's
+// surface with their tracks, like generate_scene) and the same views as NeRF-style
+// transforms_train.json / transforms_test.json (every 8th view by name, index 0, 8, ..., in the test
+// file, as hbgs splits the COLMAP model): file_path "./images/NNNN" without extension, fl_x, fl_y,
+// cx, cy, w, h and camera_angle_x, transform_matrix = the OpenGL camera-to-world of the same pose
+// (gs::io::transform_matrix_from_pose), and for kCluttered each frame's "mask_path". No point
+// cloud is named in them: hbgs initialises such a dataset with random points (like NeRF's synthetic
+// scenes).
+constexpr double kObjectCentre[3] = {0.0, 0.0, 0.25};
+constexpr double kObjectRadius = 0.57;
+
+struct ObjectOptions {
+  uint64_t seed = 1;       // object jitter, textures, camera jitter, points
+  int width = 200;         // image size, pixels
+  int height = 200;
+  int views = 48;          // cameras (every 8th is a test view)
+  int num_points = 5000;   // sparse points on the subject's surface, sparse/0/points3D.txt
+  float point_noise = 0.001f;  // std-dev of the Gaussian noise added to each point, metres
+  enum class Background { kTransparent, kCluttered } background = Background::kTransparent;
+  int samples_per_axis = 4;  // anti-aliasing and alpha resolution: samples_per_axis^2 samples per pixel
+  int threads = 0;           // 0 = all hardware threads (the output does not depend on it)
+  bool verbose = false;      // progress on stderr
+};
+
+struct ObjectSummary {
+  int num_views = 0, num_test_views = 0;
+  int num_points = 0;
+  double render_seconds = 0;  // ray tracing
+  double seconds = 0;         // wall time of generate_object
+};
+
+// Writes the object capture into out_dir (images/, masks/, sparse/0/, transforms_train.json,
+// transforms_test.json); identical options give byte-identical files.
+gs::Expected<ObjectSummary> generate_object(const ObjectOptions& options, const std::string& out_dir);
+// The cameras generate_object uses (view order = name order); empty if the options are invalid.
+std::vector<gs::Camera> make_object_cameras(const ObjectOptions& options);
+
 // A closest-hit query result.
 struct SceneHit {
   double t = 0;                 // ray parameter: position = origin + t * dir (metres if |dir| = 1)
   double position[3] = {0, 0, 0};
   double normal[3] = {0, 0, 0}; // unit shading normal, facing the ray origin
-  int object = -1;              // 0 = ground plane, 1.. = the objects
+  int object = -1;              // create(): 0 = ground plane, 1.. = the objects; create_object(): 0..5 the subject, then the background
 };
 
 // The ray-traced scene for a seed, exposed so tests and tools can check a dataset against the
@@ -86,11 +141,17 @@ struct SceneHit {
 class Scene {
  public:
   static gs::Expected<std::unique_ptr<Scene>> create(uint64_t seed);
+  // The object capture's scene (see generate_object): the subject alone, or with its cluttered
+  // background; the clutter stands between 1.5 and 2.5 x camera_distance (metres) from the centre.
+  static gs::Expected<std::unique_ptr<Scene>> create_object(uint64_t seed, bool cluttered, double camera_distance);
   ~Scene();
   Scene(const Scene&) = delete;
   Scene& operator=(const Scene&) = delete;
 
   int num_objects() const;  // including the ground plane
+  // Whether object `object` (a SceneHit::object) belongs to the subject of an object capture; false
+  // for every object of create()'s scene and for -1 (the sky).
+  bool is_subject(int object) const;
   // Closest hit along origin + t dir, t > 0; false if the ray escapes to the sky.
   bool intersect(const double origin[3], const double dir[3], SceneHit* hit) const;
   // True if anything is hit for t in (0, tfar).
@@ -100,6 +161,11 @@ class Scene {
   // Renders an 8-bit RGB view with samples_per_axis^2 jittered samples per pixel; the jitter is
   // a function of (jitter_seed, pixel, sample) only, so the result does not depend on `threads`.
   gs::io::Image8 render(const gs::Camera& camera, int samples_per_axis, uint64_t jitter_seed, int threads = 0) const;
+  // One pass, two layers (either may be null): `composite` is render()'s RGB image; `subject` is
+  // RGBA with straight alpha: alpha = the fraction of the samples whose first hit is the subject,
+  // RGB = their mean colour (0 where none is).
+  void render_layers(const gs::Camera& camera, int samples_per_axis, uint64_t jitter_seed, int threads,
+                     gs::io::Image8* composite, gs::io::Image8* subject) const;
 
  private:
   struct Impl;

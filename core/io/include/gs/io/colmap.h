@@ -78,14 +78,47 @@ Status write_colmap_binary(const ColmapModel& model, const std::string& dir);
 Pose pose_from_colmap(const double qvec[4], const double tvec[3]);
 void pose_to_colmap(const Pose& pose, double qvec[4], double tvec[3]);
 
+// Which kind of folder load_dataset reads (see load_dataset).
+enum class DatasetLayout {
+  kAuto,        // COLMAP when <root>/<sparse_dir> is a folder, else transforms files when present
+  kColmap,      // <root>/<sparse_dir> + <root>/<images_dir>
+  kTransforms,  // <root>/transforms.json, or <root>/transforms_train.json (+ _test.json)
+};
+
+// Where a dataset's points came from (Dataset::points_source).
+enum class PointsSource {
+  kNone,    // none: a transforms dataset with DatasetOptions::random_points = 0
+  kSfm,     // the COLMAP model's points3D
+  kPly,     // a transforms file's "ply_file_path" point cloud
+  kRandom,  // drawn by load_dataset (random_points_in_common_view, gs/io/transforms.h)
+};
+const char* points_source_name(PointsSource source);  // "none", "sfm", "ply", "random"
+
 struct DatasetOptions {
-  std::string images_dir = "images";  // relative to the dataset root
+  std::string images_dir = "images";  // relative to the dataset root (COLMAP layout)
   std::string sparse_dir = "sparse/0";
+  // Masks by image name, relative to the dataset root ("" disables): for image NAME (its name in
+  // the COLMAP model, or its path relative to the transforms file) the first of masks/NAME.png
+  // (COLMAP's --ImageReader.mask_path convention, e.g. masks/0001.jpg.png), masks/NAME, and
+  // masks/NAME with its extension replaced by .png (CO3D); for a transforms view the same three
+  // again with NAME's first folder dropped (images/0001.png -> masks/0001.png). When the folder
+  // exists every loaded view must have a mask there (else an error names the view and the paths
+  // tried), unless the transforms frames name their masks (mask_path; then all of them must).
+  std::string masks_dir = "masks";
+  DatasetLayout layout = DatasetLayout::kAuto;
   int max_width = 0;                  // > 0: downscale images (and intrinsics) to at most this width
-  int llffhold = 8;                   // every llffhold-th image (sorted by name, index 0, 8, ...) is a test view; 0: none
+  // Every llffhold-th image (sorted by name, index 0, 8, ...) is a test view; 0: none. A transforms
+  // dataset's own split (transforms_test.json, test_filenames) takes precedence.
+  int llffhold = 8;
   // Which views' images are decoded: the others keep their camera and an empty image (memory
-  // follows the job: evaluating the test views does not hold the training images).
+  // follows the job: evaluating the test views does not hold the training images). Masks follow.
   enum class Images { kAll, kTest, kTrain } images = Images::kAll;
+  // Points drawn for a transforms dataset without a point cloud (uniform in the cameras' common
+  // view, grey; see random_points_in_common_view), and their seed. 0: leave it without points.
+  // 10,000 points voxelise into ~10,000 anchors (100,000 neural Gaussians at k = 10), within the
+  // trainer's default initial budget (25,000) and quick to prune where the scene is empty.
+  int random_points = 10000;
+  uint64_t random_points_seed = 1;
 };
 
 // One view of a dataset: a pinhole camera (after undistortion and downscaling) and its image.
@@ -103,14 +136,45 @@ struct DatasetView {
 
 struct Dataset {
   std::string root;
+  DatasetLayout layout = DatasetLayout::kColmap;  // the layout read (never kAuto)
   std::vector<DatasetView> views;     // sorted by name
   std::vector<float> points_xyz;      // [P, 3]
   std::vector<uint8_t> points_rgb;    // [P, 3]
+  PointsSource points_source = PointsSource::kSfm;
+  // kRandom: the box the points were drawn in (world units) and the fraction of all cameras that
+  // see each of them (1: every camera).
+  float random_box_min[3] = {0, 0, 0}, random_box_max[3] = {0, 0, 0};
+  double random_min_view_fraction = 0;
 };
 
-// Loads a COLMAP dataset. PINHOLE and SIMPLE_PINHOLE are used directly; SIMPLE_RADIAL, RADIAL and
-// OPENCV images are undistorted on load to a PINHOLE camera with the same fx, fy, cx, cy;
-// any other model is refused with an error naming it. Images must match their camera's size.
+// Loads a dataset (`root` is its folder, or a transforms .json file inside it).
+//
+// COLMAP layout: <root>/<sparse_dir> (binary or text) and <root>/<images_dir>. PINHOLE and
+// SIMPLE_PINHOLE are used directly; SIMPLE_RADIAL, RADIAL and OPENCV images are undistorted on load
+// to a PINHOLE camera with the same fx, fy, cx, cy; any other model is refused with an error naming
+// it. Images must match their camera's size. Points: the model's points3D.
+//
+// Transforms layout (gs/io/transforms.h): <root>/transforms.json (instant-ngp, nerfstudio: split
+// from its test_filenames (else val_filenames) and train_filenames, frames in neither list are left
+// out; without lists every llffhold-th by name), or NeRF synthetic's <root>/transforms_train.json
+// and transforms_test.json (their split; transforms_val.json is not read). A .json path as `root`
+// reads that file (transforms_train/test/val.json: the train + test pair beside it). Image paths are
+// relative to the json and must stay below it (no absolute paths, no '..'); one without an extension
+// gets .png, .jpg or .jpeg, whichever exists. Focal length from fl_x/fl_y, else
+// 0.5 w / tan(0.5 camera_angle_x) (camera_angle_y for fy, else fy = fx); cx, cy default to the
+// centre, w, h to the image's size. k1, k2, p1, p2 are undistorted like an OPENCV camera. Poses
+// are converted from OpenGL camera-to-world (pose_from_transform_matrix). Points: the
+// "ply_file_path" point cloud, else options.random_points random ones.
+//
+// Masks (both layouts): an image with an alpha channel (PNG RGBA or grey + alpha) keeps its RGB in
+// `image` and its alpha becomes `mask`. A mask file (nerfstudio's per-frame "mask_path", else
+// options.masks_dir) is read as its grey level composited over black: luminance
+// (77 R + 150 G + 29 B) / 256 times alpha / 255, so a grey, RGB, grey + alpha or RGBA file works; a
+// file holding only 0 and 1 is a 0/1 mask and is scaled to 0/255. With both, the mask is their
+// intersection min(alpha, mask): a binary mask cuts a soft alpha, and the same coverage given twice
+// (hbgs synth --object writes RGBA images and masks/) stays as it is, where a product would square
+// the partial coverage of edge pixels. A mask must have its image's size (else an error names both
+// files and sizes), and is undistorted and downscaled with the image (outside the distorted image: 0).
 Expected<Dataset> load_dataset(const std::string& root, const DatasetOptions& options = {});
 
 }  // namespace gs::io

@@ -23,8 +23,17 @@ constexpr int kMaxImageSide = 16384;
 
 // Decodes a PNG or JPEG held in memory into `channels` channels (3 = RGB). `source` names the file
 // in error messages. Unknown formats, truncated data and absurd sizes give a clear error.
+// channels = kChannelsAsStored keeps the file's alpha: RGBA (4) when the file has an alpha channel
+// (grey + alpha is expanded to RGBA), RGB (3) otherwise.
+constexpr int kChannelsAsStored = 0;
 Expected<Image8> decode_image(const uint8_t* data, size_t size, int channels, const std::string& source);
 Expected<Image8> read_image(const std::string& path, int channels = 3);
+// Size and alpha of an image file from its header (the file is read, its pixels are not decoded).
+struct ImageInfo {
+  int width = 0, height = 0;
+  bool has_alpha = false;  // grey + alpha or RGBA
+};
+Expected<ImageInfo> read_image_info(const std::string& path);
 // Box-filter (area) downscale to any size (both <= the source size), fractional taps at the block
 // borders; for an integer ratio it equals box_downsample_rgb8 (the rounded block mean).
 Image8 resize_area(const Image8& src, int width, int height);
@@ -59,6 +68,9 @@ inline void box_downsample_rgb8(const uint8_t* rgb, int width, int height, int s
 // Encodes as PNG; writes atomically (temp file + rename).
 Expected<std::vector<uint8_t>> encode_png(const Image8& image);
 Status write_png(const std::string& path, const Image8& image);
+// Baseline JPEG (1 or 3 channels; quality 1..100); writes atomically.
+Expected<std::vector<uint8_t>> encode_jpeg(const Image8& image, int quality = 95);
+Status write_jpeg(const std::string& path, const Image8& image, int quality = 95);
 // float [H, W, 3] in [0, 1] (clamped) to 8-bit with rounding.
 Image8 image_from_float_rgb(const float* rgb, int width, int height);
 
