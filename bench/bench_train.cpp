@@ -51,7 +51,7 @@ int run(int argc, char** argv) {
   app.add_option("--threads", o.threads, "worker threads (0: all CPUs)")->capture_default_str();
   app.add_option("--max-width", o.max_width, "downscale images to at most this width (0: as stored)")->capture_default_str();
   app.add_option("--isa", o.isa, "kernel table (default: the best for this CPU)");
-  app.add_option("--image-features", o.image_features, "paper or none")->capture_default_str()->check(CLI::IsMember({"paper", "none"}));
+  app.add_option("--image-features", o.image_features, "paper, visible or none")->capture_default_str()->check(CLI::IsMember({"paper", "visible", "none"}));
   app.add_option("--seed", o.seed, "model and view-order seed")->capture_default_str();
   app.add_option("--json", json_path, "write the results (and every iteration's loss) as JSON to this file");
   CLI11_PARSE(app, argc, argv);

@@ -132,7 +132,7 @@ Command add_train_command(CLI::App& parent) {
   sub->add_option("--iterations", o->iterations, "Training iterations")->capture_default_str()->check(CLI::Range(1, 100000000));
   sub->add_option("--image-features", o->image_features, "Image-based anchor features (none: plain Scaffold-GS)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"paper", "none"}));
+      ->check(CLI::IsMember({"paper", "visible", "none"}));
   sub->add_option("--background", o->background,
                   "Colour behind the Gaussians; masked views (alpha or masks/) are composited on it: black, white, "
                   "random (a colour per iteration, evaluated on black) or r,g,b in [0, 1]")

@@ -20,7 +20,7 @@ namespace gs::model {
 
 namespace {
 
-bool paper(const ModelConfig& c) { return c.image_features == ImageFeatureMode::kPaper; }
+bool paper(const ModelConfig& c) { return uses_image_features(c.image_features); }
 
 float max_of(const std::vector<float>& v) {
   float m = 0;

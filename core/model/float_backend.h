@@ -22,7 +22,7 @@ namespace gs::model::detail {
 // The step graph's view of a model's live anchors and MLPs.
 inline ModelParamsT<float> model_params(const HybridModel& model) {
   ModelParamsT<float> p;
-  const bool paper = model.config.image_features == ImageFeatureMode::kPaper;
+  const bool paper = uses_image_features(model.config.image_features);
   p.anchors.count = model.anchor_count;
   p.anchors.k = model.config.k;
   p.anchors.feature_dim = model.config.feature_dim;

@@ -28,7 +28,7 @@ simd::MlpShape mlp_shape(const ModelConfig& c, int id) {
   }
 }
 
-bool has_image_mlp(const ModelConfig& c) { return c.image_features == ImageFeatureMode::kPaper; }
+bool has_image_mlp(const ModelConfig& c) { return uses_image_features(c.image_features); }
 
 // PyTorch's default Linear init: weights and biases ~ U(-1/sqrt(fan_in), 1/sqrt(fan_in)).
 void init_mlp(Mlp* mlp, const simd::MlpShape& s, detail::SplitMix64* rng) {
@@ -45,13 +45,18 @@ void init_mlp(Mlp* mlp, const simd::MlpShape& s, detail::SplitMix64* rng) {
 simd::MlpShape model_mlp_shape(const ModelConfig& config, int id) { return mlp_shape(config, id); }
 
 const char* image_feature_mode_name(ImageFeatureMode mode) {
-  return mode == ImageFeatureMode::kPaper ? "paper" : "none";
+  switch (mode) {
+    case ImageFeatureMode::kPaper: return "paper";
+    case ImageFeatureMode::kVisible: return "visible";
+    default: return "none";
+  }
 }
 
 Expected<ImageFeatureMode> parse_image_feature_mode(const std::string& text) {
   if (text == "paper") return ImageFeatureMode::kPaper;
   if (text == "none") return ImageFeatureMode::kNone;
-  return invalid_argument("image feature mode '" + text + "' is not one of: paper, none");
+  if (text == "visible") return ImageFeatureMode::kVisible;
+  return invalid_argument("image feature mode '" + text + "' is not one of: paper, visible, none");
 }
 
 size_t ModelConfig::anchor_capacity() const {
@@ -64,9 +69,10 @@ Status ModelConfig::validate() const {
   if (!in(k, 1, 64)) return invalid_argument("model: k (offsets per anchor) = " + std::to_string(k) + " is outside 1..64");
   if (!in(feature_dim, 1, 1024)) return invalid_argument("model: feature dimension " + std::to_string(feature_dim) + " is outside 1..1024");
   if (!in(hidden, 1, 1024)) return invalid_argument("model: MLP hidden width " + std::to_string(hidden) + " is outside 1..1024");
-  if (image_features != ImageFeatureMode::kNone && image_features != ImageFeatureMode::kPaper)
+  if (image_features != ImageFeatureMode::kNone && image_features != ImageFeatureMode::kPaper &&
+      image_features != ImageFeatureMode::kVisible)
     return invalid_argument("model: unknown image feature mode " + std::to_string(int(image_features)));
-  if (image_features == ImageFeatureMode::kPaper &&
+  if (uses_image_features(image_features) &&
       (!in(image_feature_dim, 1, 1024) || !in(image_feature_hidden, 1, 1024)))
     return invalid_argument("model: image feature dimensions must be in 1..1024");
   if (!(voxel_size >= 0.0f) || !std::isfinite(voxel_size))

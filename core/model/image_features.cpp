@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "gs/bilinear.h"
@@ -24,8 +25,11 @@ void sample_bilinear(const uint8_t* rgb, int w, int h, double u, double v, float
 
 }  // namespace
 
-Status ImageFeatureBank::init(const std::vector<const Camera*>& cameras, const std::vector<const io::Image8*>& images) {
+Status ImageFeatureBank::init(const std::vector<const Camera*>& cameras, const std::vector<const io::Image8*>& images,
+                              ImageFeatureMode mode) {
   if (cameras.empty()) return invalid_argument("image features: no training views");
+  mode_ = mode;
+  have_depth_ = false;
   if (cameras.size() != images.size()) return invalid_argument("image features: camera and image counts differ");
   cameras_ = cameras;
   levels_.assign(cameras.size() * kImagePyramidLevels, Level{});
@@ -101,9 +105,88 @@ void ImageFeatureBank::compute_one(const float* p, float* raw) const {
   raw[12] = 1.0f;
 }
 
+void ImageFeatureBank::set_occluders(const float* positions, size_t count, float radius, platform::ThreadPool* pool) {
+  if (mode_ != ImageFeatureMode::kVisible) return;
+  depth_.resize(cameras_.size());
+  auto body = [&](size_t b, size_t e, int) {
+    for (size_t j = b; j < e; ++j) {
+      const Level& lv = levels_[j * kImagePyramidLevels + kImagePyramidLevels - 1];
+      const double s = 1.0 / double(1 << (kImagePyramidLevels - 1));  // level-2 pixels per level-0 pixel
+      std::vector<float>& z = depth_[j];
+      z.assign(size_t(lv.width) * size_t(lv.height), std::numeric_limits<float>::infinity());
+      const Camera& cam = *cameras_[j];
+      for (size_t i = 0; i < count; ++i) {
+        double xc[3], u, v;
+        if (!project_inside(cam, positions + 3 * i, xc, &u, &v)) continue;
+        const double r = std::max(0.5, double(radius) * cam.intr.fx * s / xc[2]);  // disc radius, level-2 px
+        const int x0 = std::max(0, int(std::floor(u * s - r))), x1 = std::min(lv.width - 1, int(std::floor(u * s + r)));
+        const int y0 = std::max(0, int(std::floor(v * s - r))), y1 = std::min(lv.height - 1, int(std::floor(v * s + r)));
+        for (int y = y0; y <= y1; ++y)
+          for (int x = x0; x <= x1; ++x) {
+            float& d = z[size_t(y) * size_t(lv.width) + size_t(x)];
+            d = std::min(d, float(xc[2]));
+          }
+      }
+    }
+  };
+  if (pool)
+    pool->parallel_for(cameras_.size(), 1, body);
+  else
+    body(0, cameras_.size(), 0);
+  have_depth_ = true;
+}
+
+bool ImageFeatureBank::visible_in(size_t view, const double xc[3], double u, double v) const {
+  if (!have_depth_) return true;
+  const Level& lv = levels_[view * kImagePyramidLevels + kImagePyramidLevels - 1];
+  const double s = 1.0 / double(1 << (kImagePyramidLevels - 1));
+  const int x = std::min(lv.width - 1, int(u * s)), y = std::min(lv.height - 1, int(v * s));
+  return xc[2] <= double(depth_[view][size_t(y) * size_t(lv.width) + size_t(x)]) * (1.0 + kOcclusionMargin);
+}
+
+void ImageFeatureBank::compute_one_visible(const float* p, float* raw) const {
+  std::fill(raw, raw + kImageRawDim, 0.0f);
+  // The kVisibleViews views with the best (lowest) score among those that see the anchor unhidden.
+  int best[kVisibleViews];
+  double score[kVisibleViews], uv[kVisibleViews][2];
+  int n = 0;
+  for (size_t j = 0; j < cameras_.size(); ++j) {
+    double xc[3], u, v;
+    if (!project_inside(*cameras_[j], p, xc, &u, &v) || !visible_in(j, xc, u, v)) continue;
+    const double dist = std::sqrt(xc[0] * xc[0] + xc[1] * xc[1] + xc[2] * xc[2]);
+    const double sc = dist / 200.0 + 1.1 - xc[2] / (dist + 1e-6);
+    int at = n < kVisibleViews ? n++ : kVisibleViews;  // insertion into the sorted short list
+    while (at > 0 && score[at - 1] > sc) {
+      if (at < kVisibleViews) best[at] = best[at - 1], score[at] = score[at - 1], uv[at][0] = uv[at - 1][0], uv[at][1] = uv[at - 1][1];
+      --at;
+    }
+    if (at < kVisibleViews) best[at] = int(j), score[at] = sc, uv[at][0] = u, uv[at][1] = v;
+  }
+  if (n == 0) return;
+  double sum[9] = {}, sq[3] = {};
+  for (int m = 0; m < n; ++m) {
+    const Level* lv = &levels_[size_t(best[m]) * kImagePyramidLevels];
+    for (int l = 0; l < kImagePyramidLevels; ++l) {
+      const double s = 1.0 / double(1 << l);
+      float c[3];
+      sample_bilinear(lv[l].rgb, lv[l].width, lv[l].height, uv[m][0] * s, uv[m][1] * s, c);
+      for (int k = 0; k < 3; ++k) {
+        sum[3 * l + k] += c[k];
+        if (l == 0) sq[k] += double(c[k]) * c[k];
+      }
+    }
+  }
+  for (int i = 0; i < 9; ++i) raw[i] = float(sum[i] / n);
+  for (int k = 0; k < 3; ++k) raw[9 + k] = float(std::sqrt(std::max(0.0, sq[k] / n - (sum[k] / n) * (sum[k] / n))));
+  raw[12] = 1.0f;
+}
+
 void ImageFeatureBank::compute(const float* positions, size_t count, float* raw, platform::ThreadPool* pool) const {
   auto body = [&](size_t b, size_t e, int) {
-    for (size_t i = b; i < e; ++i) compute_one(positions + 3 * i, raw + i * kImageRawDim);
+    for (size_t i = b; i < e; ++i) {
+      if (mode_ == ImageFeatureMode::kVisible) compute_one_visible(positions + 3 * i, raw + i * kImageRawDim);
+      else compute_one(positions + 3 * i, raw + i * kImageRawDim);
+    }
   };
   if (pool)
     pool->parallel_for(count, 256, body);

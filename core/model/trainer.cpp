@@ -198,7 +198,13 @@ struct Trainer::Impl {
     return plan(opt);
   }
   int k() const { return model.config.k; }
-  bool paper() const { return model.config.image_features == ImageFeatureMode::kPaper; }
+  bool paper() const { return uses_image_features(model.config.image_features); }
+  // Every anchor's raw image feature from the current poses (visible mode: after the depth buffers
+  // of the current anchors, discs of one voxel).
+  void refresh_image_features() {
+    bank.set_occluders(model.positions.data(), model.anchor_count, model.voxel_size, pool);
+    bank.compute(model.positions.data(), model.anchor_count, model.image_raw.data(), pool);
+  }
 
   ModelParamsT<float> params() const { return detail::model_params(model); }
 
@@ -528,7 +534,7 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   d.pose_m.assign(6 * train_views.size(), 0.0);
   d.pose_v.assign(6 * train_views.size(), 0.0);
   d.pose_steps.assign(train_views.size(), 0);
-  if (d.paper()) GS_RETURN_IF_ERROR(d.bank.init(d.cameras, images));
+  if (d.paper()) GS_RETURN_IF_ERROR(d.bank.init(d.cameras, images, d.model.config.image_features));
   d.plan_w = max_w;
   d.plan_h = max_h;
   d.target.assign(size_t(max_w) * size_t(max_h) * 3, 0.0f);
@@ -537,7 +543,7 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   d.view_order.assign(train_views.size(), 0);
   d.view_pos = d.view_order.size();  // first call shuffles
   GS_RETURN_IF_ERROR(d.plan(options));
-  if (d.paper()) d.bank.compute(d.model.positions.data(), d.model.anchor_count, d.model.image_raw.data(), pool);
+  if (d.paper()) d.refresh_image_features();
   return t;
 }
 
@@ -595,7 +601,7 @@ Status Trainer::step(IterationStats* stats) {
     GS_RETURN_IF_ERROR(d.register_all(it, &moved));
     refresh = refresh || (d.paper() && moved > 0);
   }
-  if (refresh) d.bank.compute(d.model.positions.data(), d.model.anchor_count, d.model.image_raw.data(), d.pool);
+  if (refresh) d.refresh_image_features();
   d.iteration = it;
   if (stats) {
     stats->iteration = it;

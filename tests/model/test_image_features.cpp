@@ -294,6 +294,62 @@ TEST_CASE("image features: moved camera poses are re-read") {
   if (want >= 0) check_features(rig, p, after, want);
 }
 
+TEST_CASE("image features, visible mode: the colour mean and spread over the views that see the anchor unhidden") {
+  Rig rig;
+  std::vector<const Camera*> cp;
+  std::vector<const io::Image8*> ip;
+  for (size_t v = 0; v < 3; ++v) cp.push_back(&rig.cams[v]), ip.push_back(&rig.images[v]);
+  ImageFeatureBank bank;
+  REQUIRE(bank.init(cp, ip, ImageFeatureMode::kVisible).ok());
+  // A point every camera sees.
+  const float p[3] = {0.4f, 0.2f, 7.0f};
+  std::vector<int> seen;
+  for (int j = 0; j < 3; ++j) {
+    double xc[3], u, v;
+    if (sees(rig.cams[size_t(j)], p, xc, &u, &v)) seen.push_back(j);
+  }
+  REQUIRE(seen.size() == 3);
+  // The mean over `views` of each level's bilinear sample, and the level-0 spread.
+  auto expect = [&](const std::vector<int>& views, const float raw[kImageRawDim]) {
+    for (int l = 0; l < kImagePyramidLevels; ++l)
+      for (int c = 0; c < 3; ++c) {
+        double sum = 0, sq = 0;
+        for (int j : views) {
+          double xc[3], u, v;
+          sees(rig.cams[size_t(j)], p, xc, &u, &v);
+          const double s = sample_ref(j, l, u, v, c);
+          sum += s, sq += s * s;
+        }
+        const double mean = sum / double(views.size());
+        CHECK(raw[3 * l + c] == doctest::Approx(mean).epsilon(2e-3));
+        if (l == 0) CHECK(raw[9 + c] == doctest::Approx(std::sqrt(std::max(0.0, sq / double(views.size()) - mean * mean))).epsilon(2e-2));
+      }
+    CHECK(raw[12] == 1.0f);
+  };
+  float raw[kImageRawDim];
+  bank.compute(p, 1, raw, nullptr);  // no occluders yet: every view counts
+  expect({0, 1, 2}, raw);
+  // An anchor on camera A's ray to p, halfway: A no longer sees p, B and C still do.
+  double xa[3], ua, va;
+  sees(rig.cams[0], p, xa, &ua, &va);
+  const float occluder[3] = {0.5f * p[0], 0.5f * p[1], 0.5f * p[2]};  // A sits at the origin
+  const float both[6] = {p[0], p[1], p[2], occluder[0], occluder[1], occluder[2]};
+  bank.set_occluders(both, 2, 0.05f, nullptr);
+  bank.compute(p, 1, raw, nullptr);
+  expect({1, 2}, raw);
+  // Alone, the anchor hides nothing (its own depth is its own).
+  bank.set_occluders(p, 1, 0.05f, nullptr);
+  bank.compute(p, 1, raw, nullptr);
+  expect({0, 1, 2}, raw);
+  // Hidden from every view (a disc as wide as the scene at p's depth in front of it): all zeros.
+  bank.set_occluders(p, 1, 1000.0f, nullptr);
+  const float far_side[3] = {p[0], p[1], p[2] + 2.0f};
+  double xf[3], uf, vf;
+  REQUIRE(sees(rig.cams[0], far_side, xf, &uf, &vf));  // in view, only hidden
+  bank.compute(far_side, 1, raw, nullptr);
+  for (float v : raw) CHECK(v == 0.0f);
+}
+
 TEST_CASE("image features: init refuses no views and images that do not match their camera") {
   ImageFeatureBank bank;
   CHECK_FALSE(bank.init({}, {}).ok());

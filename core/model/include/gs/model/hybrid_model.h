@@ -19,8 +19,13 @@
 
 namespace gs::model {
 
-// Image-based feature mode: kNone is plain Scaffold-GS (the ablation baseline), kPaper the default.
-enum class ImageFeatureMode : int32_t { kNone = 0, kPaper = 1 };
+// Image-based feature mode: kNone is plain Scaffold-GS (the ablation baseline); kPaper the paper's
+// feature (the colour of the one view that sees the anchor best, and the ray's deviation from its
+// optical axis); kVisible hbgs's design (the mean and spread of the colour over the best views in
+// which no other anchor hides the anchor; gs/model/image_features.h).
+enum class ImageFeatureMode : int32_t { kNone = 0, kPaper = 1, kVisible = 2 };
+// True for the modes that feed an image feature g = F(raw) to the decoders.
+inline bool uses_image_features(ImageFeatureMode mode) { return mode != ImageFeatureMode::kNone; }
 const char* image_feature_mode_name(ImageFeatureMode mode);
 Expected<ImageFeatureMode> parse_image_feature_mode(const std::string& text);
 
@@ -43,7 +48,7 @@ struct ModelConfig {
 
   // Decoder input width: [f ; g ; view direction (3) ; distance (1)].
   int decoder_input_dim() const {
-    return feature_dim + (image_features == ImageFeatureMode::kPaper ? image_feature_dim : 0) + 4;
+    return feature_dim + (uses_image_features(image_features) ? image_feature_dim : 0) + 4;
   }
   // Rows allocated per anchor array: min(max_anchors, max_gaussians / k).
   size_t anchor_capacity() const;
