@@ -22,12 +22,7 @@ struct Timing {
   double cpu_median_ms = 0;  // process CPU time (all threads) of the median-CPU repetition
 };
 
-// CPU time of this process, all threads, in seconds (0 where the clock is unavailable).
-inline double process_cpu_seconds() {
-  timespec ts;
-  if (clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts) != 0) return 0;
-  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-}
+using gs::platform::process_cpu_seconds;  // CPU time of this process, all threads, seconds
 
 struct HarnessOptions {
   int warmup = 1;          // untimed runs first (page faults, caches, branch predictors)

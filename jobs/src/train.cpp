@@ -38,6 +38,7 @@ namespace fs = std::filesystem;
 struct Progress {
   int iteration = 0;
   double train_seconds = 0;
+  double train_cpu_seconds = 0;  // process CPU time of the training steps, all threads
   std::vector<PsnrRow> rows;
   std::vector<float> iteration_ms;  // one per iteration, in order
   std::vector<float> losses;        // the training loss of every iteration, in order
@@ -83,6 +84,7 @@ Status save_progress_to(const std::string& path, const Progress& p) {
   nlohmann::json j;
   j["iteration"] = p.iteration;
   j["train_seconds"] = p.train_seconds;
+  j["train_cpu_seconds"] = p.train_cpu_seconds;
   nlohmann::json rows = nlohmann::json::array();
   for (const PsnrRow& r : p.rows) rows.push_back({r.iteration, r.seconds, std::isfinite(r.psnr) ? r.psnr : 0.0});
   j["psnr_rows"] = std::move(rows);
@@ -106,6 +108,7 @@ Progress load_progress(const std::string& run, int at, const std::function<void(
   }
   const int saved = j.value("iteration", 0);
   p.train_seconds = j.value("train_seconds", 0.0);
+  p.train_cpu_seconds = j.value("train_cpu_seconds", 0.0);
   for (const auto& r : j.value("psnr_rows", nlohmann::json::array()))
     if (r.is_array() && r.size() == 3 && r[0].get<int>() <= at) p.rows.push_back({r[0].get<int>(), r[1].get<double>(), r[2].get<double>()});
   p.iteration_ms = j.value("iteration_ms", std::vector<float>());
@@ -622,6 +625,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     nlohmann::json extra = {
         {"iterations", it},
         {"train_seconds", prog.train_seconds},
+        {"train_cpu_seconds", prog.train_cpu_seconds},
         {"median_iteration_ms", median(std::vector<double>(prog.iteration_ms.begin(), prog.iteration_ms.end()))},
         {"model_bytes", m.file_bytes()},
         {"model_file_bytes", m.file_bytes()},  // what model.hbgs holds once this iteration is committed
@@ -676,10 +680,11 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
   int last_full = -1;
   for (int it = trainer.iteration() + 1; it <= a.iterations; ++it) {
     model::IterationStats stats;
-    const double t0 = platform::now_seconds();
+    const double t0 = platform::now_seconds(), c0 = platform::process_cpu_seconds();
     if (Status st = trainer.step(&stats); !st.ok()) return at_iteration(it, st);
     const double dt = platform::now_seconds() - t0;
     prog.train_seconds += dt;
+    prog.train_cpu_seconds += platform::process_cpu_seconds() - c0;
     prog.iteration_ms.push_back(float(1e3 * dt));
     prog.losses.push_back(float(stats.step.loss));
     if (stats.skipped_nonfinite) {

@@ -3,6 +3,8 @@
 // negative or inflated durations.
 #include "gs/platform/clock.h"
 
+#include <time.h>
+
 #include <chrono>
 
 namespace gs::platform {
@@ -15,6 +17,12 @@ uint64_t now_ns() {
 double now_seconds() {
   auto d = std::chrono::steady_clock::now().time_since_epoch();
   return std::chrono::duration<double>(d).count();
+}
+
+double process_cpu_seconds() {
+  timespec ts;
+  if (clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts) != 0) return 0;
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
 }
 
 }  // namespace gs::platform

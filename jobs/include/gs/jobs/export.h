@@ -24,7 +24,7 @@ struct ExportRunOptions {
   int max_width = -1;       // -1: as trained
   int threads = 0;          // 0: all CPUs
   int sh_degree = 3;        // 0..3 (.splat keeps degree 0 only)
-  int distill_iterations = 1000;  // steps of distillation against the model's renders (0: the fit only)
+  int distill_iterations = 2000;  // steps of distillation against the model's renders (0: the fit only)
   bool evaluate = true;     // test PSNR of the model and of the written Gaussians
   uint64_t seed = 0;
 };
