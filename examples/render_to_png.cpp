@@ -1,8 +1,10 @@
 // SPDX-License-Identifier: MIT
-// Example: render one camera of a COLMAP dataset to a PNG, from a trained hbgs model (.hbgs), a
-// standard 3DGS PLY (.ply), or the dataset's own SfM points as small Gaussians ("points").
-// Built only against the installed hbgs (find_package(hbgs) -> hbgs::hbgs, or pkg-config hbgs).
-//   render_to_png DATASET MODEL.hbgs|SPLATS.ply|points OUT.png [VIEW] [MAX_WIDTH]
+// Example: render one camera of a dataset (COLMAP or NeRF-style) to a PNG, from a trained hbgs
+// model (.hbgs, or the compact .hbgc), a splat file of any format hbgs reads (3DGS .ply,
+// .compressed.ply, .splat, .spz: gs::io::read_gaussians), or the dataset's own points as small
+// Gaussians ("points"). Built only against the installed hbgs (find_package(hbgs) -> hbgs::hbgs,
+// or pkg-config hbgs).
+//   render_to_png DATASET MODEL.hbgs|MODEL.hbgc|SPLATS.{ply,compressed.ply,splat,spz}|points OUT.png [VIEW] [MAX_WIDTH]
 // VIEW is an image name of the dataset or an index into its views sorted by name (default 0);
 // MAX_WIDTH > 0 downscales the camera (and the image compared against) to at most that width.
 #include <algorithm>
@@ -15,7 +17,7 @@
 
 #include "gs/io/colmap.h"             // gs::io::load_dataset: pinhole cameras, images, SfM points
 #include "gs/io/image.h"              // gs::io::image_from_float_rgb, write_png
-#include "gs/io/ply.h"                // gs::io::read_splat_ply
+#include "gs/io/splat_formats.h"      // gs::io::read_gaussians (any splat format)
 #include "gs/model/hybrid_model.h"    // gs::model::load_model
 #include "gs/model/trainer.h"         // gs::model::ModelRenderer
 #include "gs/platform/thread_pool.h"  // gs::platform::ThreadPool
@@ -43,7 +45,8 @@ double psnr(const gs::io::Image8& a, const gs::io::Image8& b) {
   return sse == 0 ? INFINITY : 10 * std::log10(255.0 * 255.0 * double(a.pixels.size()) / sse);
 }
 
-// Renders a Gaussian cloud (PLY or SfM points) with the differentiable renderer, forward only.
+// Renders a Gaussian cloud (a splat file or the dataset's points) with the differentiable
+// renderer, forward only.
 gs::Status render_cloud(const gs::GaussianCloud& cloud, const gs::Camera& camera, gs::platform::ThreadPool* pool,
                         float* rgb) {
   std::vector<float> opacities;
@@ -67,7 +70,8 @@ gs::Status render_cloud(const gs::GaussianCloud& cloud, const gs::Camera& camera
 
 int main(int argc, char** argv) {
   if (argc < 4) {
-    std::fprintf(stderr, "usage: %s DATASET MODEL.hbgs|SPLATS.ply|points OUT.png [VIEW] [MAX_WIDTH]\n", argv[0]);
+    std::fprintf(stderr, "usage: %s DATASET MODEL.hbgs|MODEL.hbgc|SPLATS.{ply,compressed.ply,splat,spz}|points OUT.png [VIEW] [MAX_WIDTH]\n",
+                 argv[0]);
     return 2;
   }
   const std::string dataset_dir = argv[1], source = argv[2], out = argv[3];
@@ -94,8 +98,8 @@ int main(int argc, char** argv) {
   gs::platform::ThreadPool pool(0);  // all CPUs
   std::vector<float> rgb(size_t(w) * size_t(h) * 3);
   const auto t0 = std::chrono::steady_clock::now();
-  if (ends_with(source, ".hbgs")) {
-    gs::Expected<gs::model::HybridModel> model = gs::model::load_model(source);
+  if (ends_with(source, ".hbgs") || ends_with(source, ".hbgc")) {
+    gs::Expected<gs::model::HybridModel> model = gs::model::load_model(source);  // either kind, by its magic
     if (!model.ok()) return fail(source, model.status());
     gs::model::ModelRenderer renderer;
     if (gs::Status st = renderer.init(*model, w, h, &pool); !st.ok()) return fail("renderer", st);
@@ -106,9 +110,12 @@ int main(int argc, char** argv) {
       cloud = gs::gaussians_from_points(dataset->points_xyz.data(), dataset->points_rgb.data(),
                                         dataset->points_xyz.size() / 3);
     } else {
-      gs::Expected<gs::GaussianCloud> ply = gs::io::read_splat_ply(source);
-      if (!ply.ok()) return fail(source, ply.status());
-      cloud = std::move(ply).value();
+      gs::io::SplatFormat format;
+      gs::Expected<gs::GaussianCloud> splats = gs::io::read_gaussians(source, &format);
+      if (!splats.ok()) return fail(source, splats.status());
+      std::printf("%s: %s, %zu Gaussians, SH degree %d\n", source.c_str(), gs::io::splat_format_name(format), splats->size(),
+                  splats->sh_degree);
+      cloud = std::move(splats).value();
     }
     if (cloud.size() == 0) {
       std::fprintf(stderr, "render_to_png: %s: no Gaussians\n", source.c_str());

@@ -5,7 +5,8 @@
 #   1. cmake --install of the release build into a temporary prefix; a tiny scene (hbgs synth) and
 #      a model trained on it (hbgs train); a 3DGS PLY made from the scene's SfM points;
 #   2. examples/ built against that prefix (find_package(hbgs)) and run: render_to_png (model, PLY,
-#      SfM points), register_image, train_with_progress;
+#      the model exported as .splat and .spz by hbgs export, SfM points), register_image,
+#      train_with_progress;
 #   3. examples/render_to_png built with plain `pkg-config --cflags --libs hbgs` and run;
 #   4. cmake --install of the aarch64 build, examples/ cross-built against it and render_to_png run
 #      under qemu-aarch64 on the same scene and model (armhf likewise under qemu-arm when built);
@@ -101,6 +102,13 @@ ex=$work/ex-native
 "$ex/render_to_png" "$scene" "$work/points.ply" "$work/native_ply.png" 0002.png
 "$ex/render_to_png" "$scene" points "$work/native_points.png" 3
 need_file "$work/native_model.png" "$work/native_ply.png" "$work/native_points.png"
+# Other splat formats through gs::io::read_gaussians: the model baked to .splat and .spz.
+for ext in splat spz; do
+  "$hbgs" export "$run" --out "$work/model.$ext" --distill 0 --no-eval >/dev/null
+  "$ex/render_to_png" "$scene" "$work/model.$ext" "$work/native_$ext.png" 1 | tee "$work/render_$ext.txt"
+  need_file "$work/native_$ext.png"
+done
+grep -q "model.spz: .spz, " "$work/render_spz.txt" || fail "render_to_png did not read model.spz as .spz"
 "$ex/register_image" "$run/model.hbgs" "$scene" 3 4 | tee "$work/register.txt"
 grep -q ": converged, pose" "$work/register.txt" || fail "register_image: no view converged"
 "$ex/train_with_progress" "$scene" "$work/run_example" 60 | tail -n 2

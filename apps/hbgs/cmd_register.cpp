@@ -78,7 +78,7 @@ int run_batch(const RegisterArgs& args) {
   std::printf("  time per view: median %.1f ms, mean %.1f ms (total %.1f s)\n", s.median_ms, s.mean_ms, s.total_seconds);
   std::printf("  images: PSNR %.2f dB / SSIM %.4f at the start poses, %.2f dB / %.4f at the registered poses\n",
               s.psnr_at_start, s.ssim_at_start, s.psnr_registered, s.ssim_registered);
-  std::printf("  results: %s, poses: %s/\n", s.json_path.c_str(), s.posed_dir.c_str());
+  std::printf("  results: %s, poses: %s/ (COLMAP text, transforms.json)\n", s.json_path.c_str(), s.posed_dir.c_str());
   if (s.converged < n) {
     std::fprintf(stderr, "hbgs register: %zu of %zu views did not reach the converged verdict (exit code %d)\n", n - s.converged, n,
                  kExitNotConverged);

@@ -61,7 +61,8 @@ Command add_render_command(CLI::App& parent) {
   CLI::App* sub = parent.add_subcommand(
       "render", "Render every view of a COLMAP dataset (or of a trained model's dataset) to PNGs, with timings and PSNR");
   sub->add_option("dataset", o->input,
-                  "COLMAP dataset folder (images/ and sparse/0/), or a run folder / .hbgs model from hbgs train")
+                  "Dataset: a COLMAP folder (images/ and sparse/0/), a NeRF-style folder or transforms .json file, or a run "
+                  "folder / .hbgs model from hbgs train")
       ->required();
   sub->add_option("--dataset", o->model_dataset, "With a trained model: its dataset (default: from the run's run.json)");
   sub->add_option("--ply,--gaussians", o->ply,

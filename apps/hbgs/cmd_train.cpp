@@ -115,7 +115,7 @@ int run_train(const gs::jobs::TrainRunOptions& a, bool quiet, gs::jobs::TrainRun
                 "(%.2f%% of radius; input %.2f%%)%s\n",
                 s.train_pose_final.rotation_mean_deg, s.train_pose_input.rotation_mean_deg, s.train_pose_final.translation_mean,
                 100 * s.train_pose_final.translation_mean_frac, 100 * s.train_pose_input.translation_mean_frac,
-                a.optimize_poses ? (", refined model in " + a.out + "/refined_poses/").c_str() : "");
+                a.optimize_poses ? (", refined poses in " + a.out + "/refined_poses/ (COLMAP text, transforms.json)").c_str() : "");
   std::printf("  model: %s (%.2f MB)\n", s.model_path.c_str(), double(s.model_file_bytes) / 1e6);
   if (s.skipped_steps > 0)
     std::printf("  %d steps skipped: their loss or gradients were NaN or infinite (see progress.json)\n", s.skipped_steps);
@@ -126,8 +126,10 @@ int run_train(const gs::jobs::TrainRunOptions& a, bool quiet, gs::jobs::TrainRun
 Command add_train_command(CLI::App& parent) {
   auto args = std::make_shared<TrainCli>();
   gs::jobs::TrainRunOptions* o = &args->options;
-  CLI::App* sub = parent.add_subcommand("train", "Train the hybrid anchor model on a COLMAP dataset");
-  sub->add_option("dataset", o->dataset, "COLMAP dataset folder (images/ and sparse/0/ with points)")->required();
+  CLI::App* sub = parent.add_subcommand("train", "Train the hybrid anchor model on a COLMAP or NeRF-style dataset");
+  sub->add_option("dataset", o->dataset,
+                  "Dataset: a COLMAP folder (images/ and sparse/0/ with points), or a NeRF-style folder or transforms .json file")
+      ->required();
   sub->add_option("--out", o->out, "Run folder (model, checkpoint, results, renders)")->required();
   sub->add_option("--iterations", o->iterations, "Training iterations")->capture_default_str()->check(CLI::Range(1, 100000000));
   sub->add_option("--image-features", o->image_features, "Image-based anchor features (none: plain Scaffold-GS)")
@@ -171,7 +173,7 @@ Command add_train_command(CLI::App& parent) {
   sub->add_option("--pose-noise-on", o->pose_noise_on, "Which poses the noise perturbs")
       ->capture_default_str()
       ->check(CLI::IsMember({"train", "test", "all"}));
-  sub->add_flag("--optimize-poses", o->optimize_poses, "Optimise the training poses jointly with the scene (saved to refined_poses/)");
+  sub->add_flag("--optimize-poses", o->optimize_poses, "Optimise the training poses jointly with the scene (saved to refined_poses/ as COLMAP text and transforms.json)");
   sub->add_flag("!--no-point-align", o->point_align,
                 "With --optimize-poses: skip the photometric alignment of the poses to the SfM points before training");
   sub->add_option("--pose-init", o->pose_init,

@@ -7,6 +7,8 @@
 #include <map>
 #include <system_error>
 
+#include "gs/io/transforms.h"
+#include "gs/jobs/run_folder.h"
 #include "gs/platform/file.h"
 #include "gs/stats.h"
 
@@ -69,23 +71,59 @@ nlohmann::json pose_errors_json(const pose::PoseErrors& e, bool per_view, const 
   return j;
 }
 
+namespace {
+
+// `path` as seen from `folder`: relative when it can be (symbolic links resolved on both sides, as
+// the OS resolves a '..' when following it), else absolute.
+std::string path_from(const std::string& folder, const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::path rel = std::filesystem::relative(path, folder, ec);
+  return ec || rel.empty() ? absolute_path(path) : rel.generic_string();
+}
+
+// <out_dir>/transforms.json: the views of `files` with their (replaced) poses in nerfstudio's
+// layout, file_path and mask_path leading from out_dir to the dataset's own files, and the
+// dataset's split as train/val/test lists (val = test: nerfstudio asks for the val list once any
+// list is given).
+Status write_posed_transforms(const io::DatasetFiles& files, const std::string& out_dir) {
+  io::TransformsFile t;
+  std::vector<std::string> train, test;
+  for (const io::DatasetFileView& v : files.views) {
+    io::TransformsFrame f;
+    f.file_path = path_from(out_dir, v.image_path);
+    if (!v.mask_path.empty()) f.mask_path = path_from(out_dir, v.mask_path);
+    Expected<io::TransformsIntrinsics> intrinsics = io::transforms_intrinsics(v.camera);
+    if (!intrinsics.ok()) return Status(intrinsics.status().code(), v.name + ": " + intrinsics.status().message());
+    f.intrinsics = *intrinsics;
+    const io::ColmapImage& im = files.model.images[v.model_image];
+    io::transform_matrix_from_pose(im.qvec, im.tvec, f.transform_matrix);
+    (v.is_test ? test : train).push_back(f.file_path);
+    t.frames.push_back(std::move(f));
+  }
+  // Without test views the lists would leave nerfstudio an empty evaluation split: none then.
+  if (!test.empty()) t.train_filenames = train, t.val_filenames = test, t.test_filenames = test;
+  return io::write_transforms_json((std::filesystem::path(out_dir) / kPosedTransformsJson).string(), t);
+}
+
+}  // namespace
+
 Status write_posed_model(const std::string& dataset_root, const std::vector<std::string>& names,
-                             const std::vector<Pose>& poses, const std::string& out_dir) {
-  Expected<io::ColmapModel> model = io::read_colmap_model(dataset_root + "/sparse/0");
-  if (!model.ok()) return model.status();
+                         const std::vector<Pose>& poses, const std::string& out_dir) {
+  Expected<io::DatasetFiles> files = io::read_dataset_files(dataset_root);
+  if (!files.ok()) return files.status();
   std::map<std::string, size_t> index;
   for (size_t i = 0; i < names.size(); ++i) index[names[i]] = i;
   size_t replaced = 0;
-  for (io::ColmapImage& im : model->images) {
+  for (io::ColmapImage& im : files->model.images) {
     const auto it = index.find(im.name);
     if (it == index.end()) continue;
     io::pose_to_colmap(poses[it->second], im.qvec, im.tvec);
     ++replaced;
   }
   if (replaced != names.size())
-    return invalid_argument(dataset_root + "/sparse/0: " + std::to_string(names.size() - replaced) +
-                                " of the posed images are not in the COLMAP model");
-  return io::write_colmap_text(*model, out_dir);
+    return invalid_argument(dataset_root + ": " + std::to_string(names.size() - replaced) + " of the posed images are not in the dataset");
+  GS_RETURN_IF_ERROR(io::write_colmap_text(files->model, out_dir));
+  return write_posed_transforms(*files, out_dir);
 }
 
 namespace {

@@ -71,48 +71,37 @@ Status parse_camera(const std::string& text, PinholeIntrinsics* K) {
   return Status::Ok();
 }
 
-// The dataset's camera for an image of width x height: the one COLMAP camera all images use
-// (identical parameters), scaled when the image is a uniformly scaled version of the dataset's
-// images (the rounding of the dataset loader's --max-width allowed). Otherwise an error asking
-// for --camera.
-Status dataset_camera(const std::string& dataset, int width, int height, PinholeIntrinsics* K,
-                          std::string* note) {
-  const std::string sparse = (fs::path(dataset) / "sparse" / "0").string();
-  Expected<io::ColmapModel> m = io::read_colmap_model(sparse);
-  if (!m.ok()) return invalid_argument("cannot read the dataset's camera (" + m.status().to_string() + "); pass --camera");
-  const io::ColmapCamera* cam = nullptr;
-  for (const io::ColmapImage& im : m->images) {
-    const auto it = std::find_if(m->cameras.begin(), m->cameras.end(),
-                                 [&](const io::ColmapCamera& c) { return c.id == im.camera_id; });
-    if (it == m->cameras.end()) continue;
-    if (!cam) {
-      cam = &*it;
-    } else if (it->model != cam->model || it->width != cam->width || it->height != cam->height ||
-               it->params != cam->params) {
-      return invalid_argument(sparse + ": the views do not share one camera (cameras " + std::to_string(cam->id) +
-                                  " and " + std::to_string(it->id) + " differ); pass --camera \"fx fy cx cy\"");
+// The dataset's camera for an image of width x height: the one camera all its views use (identical
+// parameters; a COLMAP or NeRF-style dataset, io::read_dataset_files), scaled when the image is a
+// uniformly scaled version of the dataset's images (the rounding of the dataset loader's
+// --max-width allowed). Otherwise an error asking for --camera.
+Status dataset_camera(const std::string& dataset, int width, int height, PinholeIntrinsics* K, std::string* note) {
+  Expected<io::DatasetFiles> files = io::read_dataset_files(dataset);
+  if (!files.ok()) return invalid_argument("cannot read the dataset's camera (" + files.status().to_string() + "); pass --camera");
+  const io::DatasetFileView* first = nullptr;
+  for (const io::DatasetFileView& v : files->views) {
+    if (!first) {
+      first = &v;
+    } else if (v.camera.width != first->camera.width || v.camera.height != first->camera.height ||
+               v.camera.params != first->camera.params) {
+      return invalid_argument(dataset + ": the views do not share one camera (" + first->name + " and " + v.name +
+                              " differ); pass --camera \"fx fy cx cy\"");
     }
   }
-  if (!cam) return invalid_argument(sparse + ": no camera; pass --camera \"fx fy cx cy\"");
-  double fx = 0, fy = 0, cx = 0, cy = 0;
-  const std::vector<double>& p = cam->params;
-  if ((cam->model == "PINHOLE" || cam->model == "OPENCV" || cam->model == "FULL_OPENCV") && p.size() >= 4) {
-    fx = p[0], fy = p[1], cx = p[2], cy = p[3];
-  } else if ((cam->model == "SIMPLE_PINHOLE" || cam->model == "SIMPLE_RADIAL" || cam->model == "RADIAL") && p.size() >= 3) {
-    fx = fy = p[0], cx = p[1], cy = p[2];
-  } else {
-    return invalid_argument(sparse + ": camera model " + cam->model + " is not supported here; pass --camera");
-  }
-  if (cam->model != "PINHOLE" && cam->model != "SIMPLE_PINHOLE")
-    *note = "the dataset's camera is " + cam->model + " (with distortion); the image is used as a pinhole image";
+  if (!first) return invalid_argument(dataset + ": no views, so no camera; pass --camera \"fx fy cx cy\"");
+  const io::ColmapCamera& cam = first->camera;
+  // PINHOLE or OPENCV (DatasetFileView::camera): fx, fy, cx, cy first either way.
+  const double fx = cam.params[0], fy = cam.params[1], cx = cam.params[2], cy = cam.params[3];
+  if (cam.model != "PINHOLE")
+    *note = "the dataset's camera has lens distortion (" + cam.model + " terms); the image is used as a pinhole image";
   double sx = 1, sy = 1;
-  if (width != cam->width || height != cam->height) {
-    sx = double(width) / cam->width, sy = double(height) / cam->height;
-    const long h_loader = std::max(1L, std::lround(double(cam->height) * width / cam->width));
+  if (width != cam.width || height != cam.height) {
+    sx = double(width) / cam.width, sy = double(height) / cam.height;
+    const long h_loader = std::max(1L, std::lround(double(cam.height) * width / cam.width));
     if (h_loader != height && std::fabs(sx / sy - 1) > 1e-3)
       return invalid_argument("the image is " + std::to_string(width) + "x" + std::to_string(height) +
-                                  " but the dataset's camera is " + std::to_string(cam->width) + "x" +
-                                  std::to_string(cam->height) + " (not a uniform scale of it); pass --camera \"fx fy cx cy\"");
+                              " but the dataset's camera is " + std::to_string(cam.width) + "x" + std::to_string(cam.height) +
+                              " (not a uniform scale of it); pass --camera \"fx fy cx cy\"");
   }
   K->fx = float(fx * sx), K->cx = float(cx * sx);
   K->fy = float(fy * sy), K->cy = float(cy * sy);

@@ -187,7 +187,7 @@ Status render_run(const RenderRunOptions& a, const std::function<void(const Rend
   const int max_width = std::max(0, a.max_width);
 
   // 1. Everything that can be wrong with the inputs is checked before anything is written.
-  if (!platform::is_directory(a.input)) return invalid_argument("dataset folder " + a.input + " not found");
+  GS_RETURN_IF_ERROR(check_dataset_path(a.input));
   const simd::KernelTable* kernels =
       a.isa.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(a.isa.c_str());
   if (!kernels)

@@ -51,17 +51,41 @@ std::string absolute_path(const std::string& path) {
   return ec ? path : p.lexically_normal().string();
 }
 
+namespace {
+
+bool is_json_file(const std::string& path) {
+  std::error_code ec;
+  const fs::path p(path);
+  return p.extension() == ".json" && fs::is_regular_file(p, ec);
+}
+
+}  // namespace
+
+Status check_dataset_path(const std::string& dataset) {
+  if (platform::is_directory(dataset) || is_json_file(dataset)) return Status::Ok();
+  const std::string forms = "give a dataset folder (COLMAP, or NeRF-style with transforms.json) or a NeRF-style transforms .json file";
+  if (!platform::file_exists(dataset)) return invalid_argument("dataset " + dataset + " not found: " + forms);
+  return invalid_argument("dataset " + dataset + " is neither a folder nor a .json file: " + forms);
+}
+
+std::string dataset_folder(const std::string& dataset) {
+  if (!is_json_file(dataset)) return dataset;
+  const fs::path p(dataset);
+  return p.has_parent_path() ? p.parent_path().string() : std::string(".");
+}
+
 Status check_output_outside_dataset(const std::string& out, const std::string& dataset) {
   std::error_code ec;
   if (fs::exists(out, ec) && !fs::is_directory(out, ec)) return invalid_argument("output " + out + " exists and is not a directory");
-  if (!platform::path_is_inside(out, dataset)) return Status::Ok();
+  const std::string folder = dataset_folder(dataset);
+  if (!platform::path_is_inside(out, folder)) return Status::Ok();
   // Inside the dataset: a sub-folder of its own ("DATASET/renders") is fine; the dataset folder
   // itself, its images (images/, images_2/ ...) and its model (sparse/) are not.
-  const fs::path ds = fs::weakly_canonical(fs::absolute(dataset, ec), ec);
+  const fs::path ds = fs::weakly_canonical(fs::absolute(folder, ec), ec);
   const fs::path rel = fs::weakly_canonical(fs::absolute(out, ec), ec).lexically_relative(ds);
   const std::string first = rel.empty() ? std::string(".") : rel.begin()->string();
   if (first == "." || first.rfind("images", 0) == 0 || first == "sparse")
-    return invalid_argument("output " + out + (first == "." ? " is the dataset folder " + dataset : " is inside the dataset's " + first + "/ folder") +
+    return invalid_argument("output " + out + (first == "." ? " is the dataset folder " + folder : " is inside the dataset's " + first + "/ folder") +
                             ": writing there would change the dataset; choose another --out");
   return Status::Ok();
 }
@@ -135,7 +159,7 @@ Expected<model::Background> model_background(const ModelSource& source, const st
 
 Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& root, int max_width,
                                                                  const std::string& split) {
-  if (!platform::is_directory(root)) return invalid_argument("dataset folder " + root + " not found");
+  GS_RETURN_IF_ERROR(check_dataset_path(root));
   io::DatasetOptions opt;
   opt.max_width = max_width;
   if (split == "test") opt.images = io::DatasetOptions::Images::kTest;

@@ -312,7 +312,7 @@ struct TrainSession::Impl {
     so.colmap.colmap = a.colmap;
     so.colmap.matcher = capture::Matcher::kExhaustive;
     so.colmap.threads = a.threads;
-    Expected<capture::SfmImages> sfm_images = capture::choose_sfm_images(a.dataset, a.sfm_images, train_views, so.colmap.max_image_size);
+    Expected<capture::SfmImages> sfm_images = capture::choose_sfm_images(dataset_folder(a.dataset), a.sfm_images, train_views, so.colmap.max_image_size);
     if (!sfm_images.ok()) return invalid_argument("--sfm-images: " + sfm_images.status().message());
     std::vector<Camera> cams = sfm_images->cameras;
     std::vector<const io::Image8*> images;
@@ -460,7 +460,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
   TrainRunOptions a = options;
   std::error_code ec;
   if (a.out.empty()) return invalid_argument("no run folder given (--out)");
-  if (!platform::is_directory(a.dataset)) return invalid_argument("dataset folder " + a.dataset + " not found");
+  GS_RETURN_IF_ERROR(check_dataset_path(a.dataset));
   if (a.resume && a.force) return invalid_argument("--resume and --force contradict each other; choose one");
   if (fs::exists(a.out, ec) && !fs::is_directory(a.out, ec)) return invalid_argument("output " + a.out + " is not a directory");
   GS_RETURN_IF_ERROR(check_output_outside_dataset(a.out, a.dataset));
@@ -530,7 +530,7 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
   if (!save_at.ok()) return save_at.status();
   if (a.pose_init == "sfm") {
     if (!a.optimize_poses) return invalid_argument("--pose-init sfm needs --optimize-poses");
-    if (Status st = capture::check_sfm_images_choice(a.dataset, a.sfm_images); !st.ok())
+    if (Status st = capture::check_sfm_images_choice(dataset_folder(a.dataset), a.sfm_images); !st.ok())
       return Status(st.code(), "--sfm-images: " + st.message());
     capture::ColmapOptions copt;
     copt.colmap = a.colmap;

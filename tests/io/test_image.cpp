@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <random>
+#include <string>
 
 #include "gs/io/image.h"
 #include "gs/platform/file.h"
@@ -32,6 +33,43 @@ Image8 gradient_image(int w, int h) {
       p[0] = uint8_t(255 * x / (w - 1)), p[1] = uint8_t(255 * y / (h - 1)), p[2] = 128;
     }
   return img;
+}
+
+// A baseline grey JPEG of `blocks` 8x8 blocks in one row, made byte by byte: one quantisation table
+// (16-bit steps when `sixteen_bit`) whose DC step is dc_step, one-code Huffman tables, and every
+// block's DC difference +32767 (category 15, fifteen 1 bits) then end-of-block. Valid syntax; the
+// DC predictor stb multiplies by the step grows by 32767 a block.
+std::vector<uint8_t> dc_ramp_jpeg(int blocks, uint16_t dc_step, bool sixteen_bit) {
+  std::vector<uint8_t> j = {0xff, 0xd8};
+  auto segment = [&](uint8_t marker, const std::vector<uint8_t>& payload) {
+    const size_t len = payload.size() + 2;
+    j.insert(j.end(), {0xff, marker, uint8_t(len >> 8), uint8_t(len & 0xff)});
+    j.insert(j.end(), payload.begin(), payload.end());
+  };
+  std::vector<uint8_t> dqt = {uint8_t(sixteen_bit ? 0x10 : 0x00)};
+  for (int i = 0; i < 64; ++i) {
+    const uint16_t step = i == 0 ? dc_step : 1;
+    if (sixteen_bit) dqt.push_back(uint8_t(step >> 8));
+    dqt.push_back(uint8_t(step & 0xff));
+  }
+  segment(0xdb, dqt);
+  const int width = 8 * blocks;
+  segment(0xc0, {8, 0, 8, uint8_t(width >> 8), uint8_t(width & 0xff), 1, 1, 0x11, 0});  // 8 bits, 8 rows, 1 component
+  std::vector<uint8_t> dc = {0x00, 1}, ac = {0x10, 1};  // one code of 1 bit each
+  dc.insert(dc.end(), 15, 0), ac.insert(ac.end(), 15, 0);
+  dc.push_back(15), ac.push_back(0x00);  // DC: category 15; AC: end of block
+  segment(0xc4, dc);
+  segment(0xc4, ac);
+  segment(0xda, {1, 1, 0x00, 0, 63, 0});
+  std::string bits;
+  for (int b = 0; b < blocks; ++b) bits += "0" + std::string(15, '1') + "0";
+  bits.append((8 - bits.size() % 8) % 8, '1');
+  for (size_t i = 0; i < bits.size(); i += 8) {
+    j.push_back(uint8_t(std::stoi(bits.substr(i, 8), nullptr, 2)));
+    if (j.back() == 0xff) j.push_back(0x00);  // byte stuffing
+  }
+  j.insert(j.end(), {0xff, 0xd9});
+  return j;
 }
 
 std::vector<uint8_t> png_of(const Image8& img) {
@@ -118,6 +156,7 @@ TEST_CASE("fuzz findings: JPEG Huffman tables over 256 codes and PNG chunks long
                {"png_huge_idat.png", "corrupt PNG: chunk 'IDAT'"},
                {"scan_undefined_table.jpg", "uses a Huffman table that no DHT segment defines"},
                {"huff_decode_negative_index.jpg", "uses a Huffman table that no DHT segment defines"},
+               {"dequant_undefined_table.jpg", "the scan at byte 181 uses quantisation table 0, which no DQT segment before it defines"},
                {"empty_idat_before_data.png", "an empty IDAT chunk at byte 3349 before any image data"}};
   for (const auto& c : cases) {
     const std::string path = std::string(GS_SOURCE_DIR) + "/fuzz/corpus/image/" + c.file;
@@ -127,6 +166,32 @@ TEST_CASE("fuzz findings: JPEG Huffman tables over 256 codes and PNG chunks long
     REQUIRE_FALSE(img.ok());
     CHECK_MESSAGE(img.status().message().find(c.expect) != std::string::npos, img.status().message());
   }
+}
+
+TEST_CASE("fuzz finding: a JPEG DC predictor times its quantisation step past int decodes (wrapping), not undefined") {
+  // fuzz/fuzz_image found stb_image's `dc * dequant[0]` overflowing int (the step came from a table
+  // no DQT defined, refused above; here the tables are defined). stb_impl.cpp is compiled with
+  // -fwrapv, so under the sanitisers these decode to (garbage) pixels instead of undefined
+  // behaviour; refusing 16-bit tables would not do: an 8-bit step of 255 overflows after 258 blocks.
+  const struct {
+    const char* what;
+    int blocks;
+    uint16_t step;
+    bool sixteen_bit;
+  } cases[] = {{"16-bit table, 2 blocks", 2, 65535, true}, {"8-bit table, 300 blocks", 300, 255, false}};
+  for (const auto& c : cases) {
+    CAPTURE(c.what);
+    const std::vector<uint8_t> jpeg = dc_ramp_jpeg(c.blocks, c.step, c.sixteen_bit);
+    const Expected<Image8> img = decode_image(jpeg.data(), jpeg.size(), 1, "dc_ramp.jpg");
+    REQUIRE_MESSAGE(img.ok(), img.status().to_string());
+    CHECK(img->width == 8 * c.blocks);
+    CHECK(img->height == 8);
+  }
+  // The same file kept in the fuzz corpus as a seed.
+  const std::string path = std::string(GS_SOURCE_DIR) + "/fuzz/corpus/image/dc_overflow_16bit_table.jpg";
+  const Expected<std::vector<uint8_t>> kept = platform::read_file(path);
+  REQUIRE_MESSAGE(kept.ok(), kept.status().to_string());
+  CHECK(*kept == dc_ramp_jpeg(2, 65535, true));
 }
 
 TEST_CASE("read_image and write_png round trip through a file") {

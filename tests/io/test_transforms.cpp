@@ -439,6 +439,16 @@ TEST_CASE("parse_point_ply: ascii and binary point clouds, and malformed ones") 
   check_error(parse_text("ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\nend_header\n").status(), {"unknown property type"});
   check_error(parse_text("ply\nformat ascii 1.0\nelement vertex 1\n").status(), {"no 'end_header'"});
   check_error(parse_text("solid cube\n").status(), {"not a PLY file"});
+  // The header reader is ply/ply_header's: CRLF lines, and its refusals.
+  auto crlf = parse_text("ply\r\nformat ascii 1.0\r\nelement vertex 1\r\nproperty float x\r\nproperty float y\r\n"
+                         "property float z\r\nend_header\r\n7 8 9\r\n");
+  REQUIRE_MESSAGE(crlf.ok(), crlf.status().to_string());
+  CHECK(crlf->xyz == std::vector<float>{7, 8, 9});
+  check_error(parse_text("ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar float x\nend_header\n1 2\n").status(),
+              {"list property 'x' in the vertex element"});
+  check_error(parse_text("ply\nformat ascii 2.0\nelement vertex 0\nend_header\n").status(), {"format version '2.0'"});
+  check_error(parse_text("ply\nformat ascii 1.0\nproperty float x\nelement vertex 0\nend_header\n").status(),
+              {"line 3", "property before any element"});
   check_error(parse_text("ply\nformat ascii 1.0\nelement vertex 99999999999\nproperty float x\nproperty float y\n"
                          "property float z\nend_header\n1 2 3\n").status(),
               {"truncated", "cannot fit"});

@@ -2,8 +2,6 @@
 // generate_object: an object capture (hbgs synth --object). Cameras on the upper hemisphere around
 // a small textured subject, rendered with exact coverage (RGBA on a transparent background, or RGB
 // on a cluttered one plus masks), written as a COLMAP dataset and as NeRF-style transforms files.
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -81,30 +79,26 @@ gs::Status write_transforms(const std::string& path, const std::vector<detail::V
                             const std::vector<std::string>& names, const std::vector<std::string>& mask_names,
                             bool test) {
   const gs::PinholeIntrinsics& K = views.front().camera.intr;
-  nlohmann::ordered_json j;
-  j["camera_angle_x"] = 2 * std::atan(0.5 * K.width / double(K.fx));
-  j["fl_x"] = double(K.fx);
-  j["fl_y"] = double(K.fy);
-  j["cx"] = double(K.cx);
-  j["cy"] = double(K.cy);
-  j["w"] = K.width;
-  j["h"] = K.height;
-  nlohmann::ordered_json frames = nlohmann::ordered_json::array();
+  gs::io::TransformsIntrinsics intrinsics;
+  intrinsics.camera_angle_x = 2 * std::atan(0.5 * K.width / double(K.fx));
+  intrinsics.fl_x = double(K.fx);
+  intrinsics.fl_y = double(K.fy);
+  intrinsics.cx = double(K.cx);
+  intrinsics.cy = double(K.cy);
+  intrinsics.w = K.width;
+  intrinsics.h = K.height;
+  gs::io::TransformsFile file;
   for (size_t v = 0; v < views.size(); ++v) {
     if ((int(v) % kTestEvery == 0) != test) continue;
     const std::string& name = names[v];
-    nlohmann::ordered_json f;
-    f["file_path"] = "./images/" + name.substr(0, name.rfind('.'));
-    if (!mask_names.empty()) f["mask_path"] = "masks/" + mask_names[v];
-    double m[16];
-    gs::io::transform_matrix_from_pose(views[v].qvec, views[v].tvec, m);
-    nlohmann::ordered_json rows = nlohmann::ordered_json::array();
-    for (int r = 0; r < 4; ++r) rows.push_back({m[4 * r], m[4 * r + 1], m[4 * r + 2], m[4 * r + 3]});
-    f["transform_matrix"] = std::move(rows);
-    frames.push_back(std::move(f));
+    gs::io::TransformsFrame f;
+    f.file_path = "./images/" + name.substr(0, name.rfind('.'));
+    if (!mask_names.empty()) f.mask_path = "masks/" + mask_names[v];
+    f.intrinsics = intrinsics;
+    gs::io::transform_matrix_from_pose(views[v].qvec, views[v].tvec, f.transform_matrix);
+    file.frames.push_back(std::move(f));
   }
-  j["frames"] = std::move(frames);
-  return gs::platform::write_file_atomic(path, j.dump(2) + "\n");
+  return gs::io::write_transforms_json(path, file);
 }
 
 // The alpha channel of an RGBA image, as a 1-channel mask.

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // load_dataset: a COLMAP folder (sparse model + images) or a NeRF-style folder (transforms.json)
-// -> pinhole views with decoded RGB images, subject masks (alpha or mask files) and points.
+// -> pinhole views with decoded RGB images, subject masks (alpha or mask files) and points; and
+// read_dataset_files, the same views as their files describe them (for writers of posed models).
 // Both layouts become one list of views to load, so undistortion (SIMPLE_RADIAL, RADIAL, OPENCV
 // into a PINHOLE camera with the same fx, fy, cx, cy), masks, downscaling and the split are done by
 // one implementation and the renderer only ever sees pinholes.
@@ -119,7 +120,8 @@ struct Source {
 
 // ---- COLMAP layout ----
 
-Expected<Source> colmap_source(const std::string& root, const DatasetOptions& options) {
+// `keep` (optional) receives the model as read.
+Expected<Source> colmap_source(const std::string& root, const DatasetOptions& options, ColmapModel* keep) {
   const std::string sparse_dir = detail::join_path(root, options.sparse_dir);
   const std::string images_dir = detail::join_path(root, options.images_dir);
   auto model = read_colmap_model(sparse_dir);
@@ -155,6 +157,7 @@ Expected<Source> colmap_source(const std::string& root, const DatasetOptions& op
     for (int k = 0; k < 3; ++k) src.points_rgb.push_back(p.rgb[k]);
   }
   src.points_source = PointsSource::kSfm;
+  if (keep) *keep = std::move(model).value();
   return src;
 }
 
@@ -408,6 +411,13 @@ std::string find_mask_file(const std::string& masks_root, const std::string& nam
   return "";
 }
 
+// The mask file of a view: its own (mask_path) or the one found in masks_root ("" when not searched);
+// "" when there is none, with the paths tried in *tried.
+std::string view_mask_file(const ViewSpec& spec, const std::string& masks_root, std::string* tried) {
+  if (!spec.mask_path.empty() || masks_root.empty()) return spec.mask_path;
+  return find_mask_file(masks_root, spec.name, spec.transforms, tried);
+}
+
 // ---- Assembly ----
 
 // The view's pinhole camera (downscaled to options.max_width) and pose.
@@ -447,13 +457,11 @@ Status load_pixels(const ViewSpec& spec, const CameraPlan& plan, const std::stri
   } else {
     rgb = std::move(*img);
   }
-  std::string mask_file = spec.mask_path, tried;
-  if (mask_file.empty() && !masks_root.empty()) {
-    mask_file = find_mask_file(masks_root, spec.name, spec.transforms, &tried);
-    if (mask_file.empty())
-      return io_error(masks_root + ": no mask for " + spec.name + " (" + spec.what + "); tried " + tried +
-                      ". Every view needs a mask when the dataset has a masks folder");
-  }
+  std::string tried;
+  const std::string mask_file = view_mask_file(spec, masks_root, &tried);
+  if (mask_file.empty() && !masks_root.empty())
+    return io_error(masks_root + ": no mask for " + spec.name + " (" + spec.what + "); tried " + tried +
+                    ". Every view needs a mask when the dataset has a masks folder");
   if (!mask_file.empty()) {
     auto file_mask = read_mask(mask_file);
     if (!file_mask.ok()) return file_mask.status();
@@ -482,10 +490,28 @@ Status load_pixels(const ViewSpec& spec, const CameraPlan& plan, const std::stri
   return Status::Ok();
 }
 
+// Sorts the views by name, the order of Dataset::views and the one the by-name split counts in.
+void sort_views(Source* src) {
+  std::sort(src->views.begin(), src->views.end(), [](const ViewSpec& a, const ViewSpec& b) { return a.name < b.name; });
+}
+
+// Whether the i-th view by name is a test view: its file's split, else every llffhold-th.
+bool is_test_view(const ViewSpec& spec, size_t i, const DatasetOptions& options) {
+  return spec.split == ViewSpec::Split::kTest ||
+         (spec.split == ViewSpec::Split::kByName && options.llffhold > 0 && i % size_t(options.llffhold) == 0);
+}
+
+// The masks folder searched for the views' masks; "" when none is (no such folder, masks_dir "", or
+// every frame names its mask).
+std::string searched_masks_folder(const Source& src, const std::string& folder, const DatasetOptions& options) {
+  if (src.masks_named || options.masks_dir.empty()) return "";
+  const std::string masks_root = detail::join_path(folder, options.masks_dir);
+  return platform::is_directory(masks_root) ? masks_root : "";
+}
+
 Expected<Dataset> assemble(const std::string& root, const std::string& folder, Source src, const DatasetOptions& options) {
-  std::sort(src.views.begin(), src.views.end(), [](const ViewSpec& a, const ViewSpec& b) { return a.name < b.name; });
-  const std::string masks_root = options.masks_dir.empty() ? "" : detail::join_path(folder, options.masks_dir);
-  const bool has_masks_folder = !src.masks_named && !masks_root.empty() && platform::is_directory(masks_root);
+  sort_views(&src);
+  const std::string masks_root = searched_masks_folder(src, folder, options);
 
   Dataset ds;
   ds.root = root;
@@ -509,12 +535,11 @@ Expected<Dataset> assemble(const std::string& root, const std::string& folder, S
     DatasetView view;
     view.name = spec.name;
     view.image_id = spec.image_id;
-    view.is_test = spec.split == ViewSpec::Split::kTest ||
-                   (spec.split == ViewSpec::Split::kByName && options.llffhold > 0 && i % size_t(options.llffhold) == 0);
+    view.is_test = is_test_view(spec, i, options);
     view_camera(plan, options, spec, &view);
     const bool wanted = options.images == DatasetOptions::Images::kAll ||
                         (options.images == DatasetOptions::Images::kTest) == view.is_test;
-    if (wanted) GS_RETURN_IF_ERROR(load_pixels(spec, plan, has_masks_folder ? masks_root : "", &view));
+    if (wanted) GS_RETURN_IF_ERROR(load_pixels(spec, plan, masks_root, &view));
     ds.views.push_back(std::move(view));
   }
 
@@ -539,7 +564,13 @@ Expected<Dataset> assemble(const std::string& root, const std::string& folder, S
   return ds;
 }
 
-Expected<Dataset> load(const std::string& root, const DatasetOptions& options) {
+// The views of the dataset at `root` (a folder or a transforms .json file) and the folder their
+// names are relative to; `keep` (optional) receives a COLMAP layout's model as read.
+struct Located {
+  Source src;
+  std::string folder;
+};
+Expected<Located> locate(const std::string& root, const DatasetOptions& options, ColmapModel* keep) {
   if (options.max_width < 0) return invalid_argument("load_dataset: max_width must be >= 0");
   if (options.llffhold < 0) return invalid_argument("load_dataset: llffhold must be >= 0");
   if (options.random_points < 0) return invalid_argument("load_dataset: random_points must be >= 0");
@@ -556,7 +587,7 @@ Expected<Dataset> load(const std::string& root, const DatasetOptions& options) {
     }
     auto src = transforms_source(folder, inputs);
     if (!src.ok()) return src.status();
-    return assemble(root, folder, std::move(src).value(), options);
+    return Located{std::move(src).value(), folder};
   }
 
   const bool colmap_here = platform::is_directory(detail::join_path(root, options.sparse_dir));
@@ -568,11 +599,69 @@ Expected<Dataset> load(const std::string& root, const DatasetOptions& options) {
       return io_error(root + ": no transforms.json or transforms_train.json (a NeRF-style dataset was asked for)");
     auto src = transforms_source(root, inputs);
     if (!src.ok()) return src.status();
-    return assemble(root, root, std::move(src).value(), options);
+    return Located{std::move(src).value(), root};
   }
-  auto src = colmap_source(root, options);
+  auto src = colmap_source(root, options, keep);
   if (!src.ok()) return src.status();
-  return assemble(root, root, std::move(src).value(), options);
+  return Located{std::move(src).value(), root};
+}
+
+Expected<Dataset> load(const std::string& root, const DatasetOptions& options) {
+  auto located = locate(root, options, nullptr);
+  if (!located.ok()) return located.status();
+  return assemble(root, located->folder, std::move(located->src), options);
+}
+
+// A camera plan as the PINHOLE or OPENCV camera it stands for (DatasetFileView::camera).
+ColmapCamera plan_camera(const CameraPlan& plan, uint32_t id) {
+  ColmapCamera cam;
+  cam.id = id;
+  cam.width = plan.width, cam.height = plan.height;
+  cam.model = plan.distorted() ? "OPENCV" : "PINHOLE";
+  cam.params = {plan.fx, plan.fy, plan.cx, plan.cy};
+  if (plan.distorted()) cam.params.insert(cam.params.end(), {plan.k1, plan.k2, plan.p1, plan.p2});
+  return cam;
+}
+
+Expected<DatasetFiles> files(const std::string& root, const DatasetOptions& options) {
+  DatasetFiles out;
+  auto located = locate(root, options, &out.model);
+  if (!located.ok()) return located.status();
+  Source& src = located->src;
+  sort_views(&src);
+  out.layout = src.layout;
+  std::map<std::string, size_t> image_of_name;  // COLMAP: index in the model as read
+  if (src.layout == DatasetLayout::kColmap) {
+    for (size_t i = 0; i < out.model.images.size(); ++i) image_of_name[out.model.images[i].name] = i;
+  } else {
+    for (size_t p = 0; p < src.plans.size(); ++p) out.model.cameras.push_back(plan_camera(src.plans[p], uint32_t(p + 1)));
+  }
+  const std::string masks_root = searched_masks_folder(src, located->folder, options);
+  for (size_t i = 0; i < src.views.size(); ++i) {
+    const ViewSpec& spec = src.views[i];
+    DatasetFileView v;
+    v.name = spec.name;
+    v.image_path = spec.image_path;
+    std::string tried;
+    v.mask_path = view_mask_file(spec, masks_root, &tried);
+    v.is_test = is_test_view(spec, i, options);
+    if (src.layout == DatasetLayout::kColmap) {
+      v.model_image = image_of_name.at(spec.name);  // the views are the model's images
+      v.camera = plan_camera(src.plans.at(spec.plan), out.model.images[v.model_image].camera_id);
+    } else {
+      ColmapImage im;
+      im.id = spec.image_id;
+      im.camera_id = uint32_t(spec.plan + 1);
+      im.name = spec.name;
+      std::copy(spec.qvec, spec.qvec + 4, im.qvec);
+      std::copy(spec.tvec, spec.tvec + 3, im.tvec);
+      v.model_image = out.model.images.size();
+      out.model.images.push_back(std::move(im));
+      v.camera = out.model.cameras.at(spec.plan);
+    }
+    out.views.push_back(std::move(v));
+  }
+  return out;
 }
 
 }  // namespace
@@ -589,6 +678,10 @@ const char* points_source_name(PointsSource source) {
 
 Expected<Dataset> load_dataset(const std::string& root, const DatasetOptions& options) {
   return detail::guarded(root, [&]() { return load(root, options); });
+}
+
+Expected<DatasetFiles> read_dataset_files(const std::string& root, const DatasetOptions& options) {
+  return detail::guarded(root, [&]() { return files(root, options); });
 }
 
 }  // namespace gs::io

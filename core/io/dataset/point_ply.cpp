@@ -1,124 +1,65 @@
 // SPDX-License-Identifier: MIT
 // Point-cloud PLY files (nerfstudio's "ply_file_path": ascii or binary little-endian vertices with
-// x, y, z and optional red, green, blue). Unlike the 3DGS checkpoint reader (ply/splat_ply.cpp),
-// any scalar property type is accepted and unknown properties are skipped. Every count is checked
-// against the file's size before anything is allocated.
+// x, y, z and optional red, green, blue). The header is read by gs_io's one PLY header reader
+// (ply/ply_header.h); unlike the 3DGS checkpoint reader (ply/splat_ply.cpp), any scalar property
+// type is accepted and unknown properties are skipped. Every count is checked against the file's
+// size before anything is allocated.
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
-#include <sstream>
 
 #include "../io_util.h"
+#include "../ply/ply_header.h"
 #include "gs/io/transforms.h"
 #include "gs/platform/file.h"
 
 namespace gs::io {
 namespace {
 
-constexpr size_t kMaxHeaderBytes = 1 << 16;
+using detail::PlyScalar;
 
-enum class Type { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
-
-bool type_from_name(const std::string& n, Type* t, size_t* bytes) {
-  struct Row {
-    const char* a;
-    const char* b;
-    Type t;
-    size_t bytes;
-  };
-  static const Row kRows[] = {{"char", "int8", Type::kInt8, 1},       {"uchar", "uint8", Type::kUint8, 1},
-                              {"short", "int16", Type::kInt16, 2},    {"ushort", "uint16", Type::kUint16, 2},
-                              {"int", "int32", Type::kInt32, 4},      {"uint", "uint32", Type::kUint32, 4},
-                              {"float", "float32", Type::kFloat32, 4}, {"double", "float64", Type::kFloat64, 8}};
-  for (const Row& r : kRows)
-    if (n == r.a || n == r.b) {
-      *t = r.t, *bytes = r.bytes;
-      return true;
-    }
-  return false;
-}
+// Vertex counts above this are refused by the header reader; the body checks below refuse far
+// smaller counts that the file's size cannot hold.
+constexpr uint64_t kMaxVertices = uint64_t(1) << 40;
 
 struct Property {
   std::string name;
-  Type type;
+  PlyScalar type;
   size_t offset;  // bytes into a binary vertex record
 };
 
 struct Header {
   bool ascii = false;
-  size_t bytes = 0;  // header length including "end_header\n"
+  size_t bytes = 0;  // header length including the "end_header" line
   uint64_t count = 0;
   std::vector<Property> props;
   size_t stride = 0;  // binary vertex record, bytes
 };
 
+// The vertex element of the header (read by detail::parse_ply_header): elements after it (faces,
+// edges) are ignored, elements with entries before it are refused (their records would have to
+// be skipped first), and its count is checked against the bytes after the header.
 Status parse_header(const uint8_t* data, size_t size, const std::string& src, Header* h) {
-  const std::string head(reinterpret_cast<const char*>(data), std::min(size, kMaxHeaderBytes));
-  if (head.compare(0, 4, "ply\n") != 0 && head.compare(0, 5, "ply\r\n") != 0)
-    return parse_error(src + ": not a PLY file (no 'ply' line at the start)");
-  const size_t end = head.find("end_header");
-  const size_t eol = end == std::string::npos ? std::string::npos : head.find('\n', end);
-  if (eol == std::string::npos) return parse_error(src + ": PLY header has no 'end_header' line (truncated?)");
-  h->bytes = eol + 1;
-  std::istringstream lines(head.substr(0, end));
-  std::string line;
-  bool format_ok = false, in_vertex = false, vertex_seen = false;
-  int line_no = 0;
-  while (std::getline(lines, line)) {
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::istringstream ls(line);
-    std::string kw;
-    ls >> kw;
-    const std::string at = src + ": PLY header line " + std::to_string(line_no) + ": ";
-    if (line_no == 1 || kw.empty() || kw == "comment" || kw == "obj_info") continue;
-    if (kw == "format") {
-      std::string fmt, ver;
-      ls >> fmt >> ver;
-      if (fmt == "ascii") h->ascii = true;
-      else if (fmt != "binary_little_endian")
-        return unsupported(at + "format '" + fmt + "' (ascii or binary_little_endian)");
-      format_ok = true;
-    } else if (kw == "element") {
-      std::string name, count_tok;
-      ls >> name >> count_tok;
-      uint64_t n = 0;
-      for (char c : count_tok) {
-        if (c < '0' || c > '9' || n > (uint64_t(1) << 40)) return parse_error(at + "bad element count '" + count_tok + "'");
-        n = n * 10 + uint64_t(c - '0');
-      }
-      if (count_tok.empty()) return parse_error(at + "element without a count");
-      if (vertex_seen) {
-        in_vertex = false;  // elements after the vertices (faces, edges) are not read
-        continue;
-      }
-      if (name == "vertex") {
-        in_vertex = vertex_seen = true;
-        h->count = n;
-      } else if (n != 0) {
-        return unsupported(at + "element '" + name + "' before the vertices (only the vertices are read)");
-      }
-    } else if (kw == "property") {
-      std::string type, name;
-      ls >> type >> name;
-      if (!in_vertex) continue;
-      if (type == "list") return unsupported(at + "list property in the vertex element");
-      Property p;
-      size_t bytes = 0;
-      if (!type_from_name(type, &p.type, &bytes)) return parse_error(at + "unknown property type '" + type + "'");
-      for (const Property& q : h->props)
-        if (q.name == name) return parse_error(at + "duplicate vertex property '" + name + "'");
-      p.name = name;
-      p.offset = h->stride;
-      h->stride += bytes;
-      h->props.push_back(p);
-    } else {
-      return parse_error(at + "unexpected keyword '" + kw + "'");
+  detail::PlyHeader ply;
+  GS_RETURN_IF_ERROR(detail::parse_ply_header(data, size, src, kMaxVertices, &ply, /*accept_ascii=*/true));
+  h->ascii = ply.ascii;
+  h->bytes = ply.bytes;
+  const detail::PlyElement* vertex = nullptr;
+  for (const detail::PlyElement& e : ply.elements) {
+    if (e.name == "vertex") {
+      vertex = &e;
+      break;
     }
+    if (e.count != 0) return unsupported(src + ": PLY element '" + e.name + "' before the vertices (only the vertices are read)");
   }
-  if (!format_ok) return parse_error(src + ": PLY header has no 'format' line");
-  if (!vertex_seen) return parse_error(src + ": PLY header has no 'vertex' element");
+  if (!vertex) return parse_error(src + ": PLY header has no 'vertex' element");
+  h->count = vertex->count;
+  for (const detail::PlyProperty& p : vertex->properties) {
+    if (p.type == "list") return unsupported(src + ": PLY list property '" + p.name + "' in the vertex element");
+    h->props.push_back({p.name, p.scalar, p.offset});
+  }
+  h->stride = vertex->record_bytes;
   const size_t body = size - h->bytes;
   if (h->ascii) {
     // Every value takes at least one character and one separator (the last may lack its separator).
@@ -133,16 +74,16 @@ Status parse_header(const uint8_t* data, size_t size, const std::string& src, He
   return Status::Ok();
 }
 
-double load_binary(const uint8_t* p, Type t) {
+double load_binary(const uint8_t* p, PlyScalar t) {
   switch (t) {
-    case Type::kInt8: return double(int8_t(p[0]));
-    case Type::kUint8: return double(p[0]);
-    case Type::kInt16: return double(int16_t(detail::load_le(p, 2)));
-    case Type::kUint16: return double(detail::load_le(p, 2));
-    case Type::kInt32: return double(int32_t(detail::load_u32(p)));
-    case Type::kUint32: return double(detail::load_u32(p));
-    case Type::kFloat32: return double(detail::load_f32(p));
-    case Type::kFloat64: return detail::load_f64(p);
+    case PlyScalar::kInt8: return double(int8_t(p[0]));
+    case PlyScalar::kUint8: return double(p[0]);
+    case PlyScalar::kInt16: return double(int16_t(detail::load_le(p, 2)));
+    case PlyScalar::kUint16: return double(detail::load_le(p, 2));
+    case PlyScalar::kInt32: return double(int32_t(detail::load_u32(p)));
+    case PlyScalar::kUint32: return double(detail::load_u32(p));
+    case PlyScalar::kFloat32: return double(detail::load_f32(p));
+    case PlyScalar::kFloat64: return detail::load_f64(p);
   }
   return 0;
 }
@@ -154,8 +95,8 @@ int index_of(const Header& h, const char* name) {
 }
 
 // A colour value as 8 bits: integers are levels (clamped to 0..255), floats are in [0, 1].
-uint8_t colour_level(double v, Type t) {
-  const double level = (t == Type::kFloat32 || t == Type::kFloat64) ? v * 255.0 : v;
+uint8_t colour_level(double v, PlyScalar t) {
+  const double level = (t == PlyScalar::kFloat32 || t == PlyScalar::kFloat64) ? v * 255.0 : v;
   if (!(level > 0)) return 0;
   return level >= 255 ? 255 : uint8_t(std::lround(level));
 }

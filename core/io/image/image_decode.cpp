@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <climits>
 #include <cstring>
+#include <utility>
+#include <vector>
 
 #include "../io_util.h"
 #include "gs/io/image.h"
@@ -30,12 +32,22 @@ bool png_sides(const uint8_t* d, size_t n, uint64_t* w, uint64_t* h) {
   return true;
 }
 
-// Debian 12's stb_image builds each JPEG Huffman table into fixed arrays of 256 codes without
-// checking the table's declared code count, so a table declaring more (the 16 counts sum past 256)
-// writes past the array (found by fuzz/fuzz_image). Every DHT segment, also those between the
-// scans of a progressive JPEG, is checked here before stb sees the file.
-Status check_jpeg_huffman_tables(const uint8_t* d, size_t n, const std::string& source) {
+// The JPEG tables stb would trust, checked segment by segment before stb sees the file (every
+// finding below came from fuzz/fuzz_image):
+// - Debian 12's stb_image builds each Huffman table into fixed arrays of 256 codes without checking
+//   the table's declared code count, so a table declaring more (the 16 counts sum past 256) writes
+//   past the array. Every DHT segment, also those between the scans of a progressive JPEG, is
+//   checked.
+// - A scan decoding with a Huffman table that no DHT defined, or dequantising with a quantisation
+//   table that no DQT defined, makes stb read never-initialised table memory (a negative symbol
+//   index; quantisation steps that vary from run to run, up to 16 bits, whose products with the DC
+//   coefficient overflowed int). Each scan's components must have both defined before the scan.
+Status check_jpeg_tables(const uint8_t* d, size_t n, const std::string& source) {
   bool defined[2][4] = {};  // [class: 0 DC, 1 AC][table id], by a DHT so far
+  bool quant_defined[4] = {};  // by a DQT so far
+  // The frame's components (the first SOF; stb refuses a second): id -> quantisation table.
+  std::vector<std::pair<uint8_t, uint8_t>> frame_tables;
+  bool have_frame = false;
   size_t p = 2;  // after SOI
   while (p + 4 <= n) {
     if (d[p] != 0xff) {  // entropy-coded data between markers
@@ -69,6 +81,22 @@ Status check_jpeg_huffman_tables(const uint8_t* d, size_t n, const std::string& 
         q += 17 + codes;
       }
     }
+    // DQT: (precision << 4 | id) then 64 steps of 1 or 2 bytes, repeated. stb refuses other
+    // precisions and ids, and reads steps cut off by the end of the file as 0 (defined, if odd).
+    if (m == 0xdb) {
+      size_t q = p + 4;
+      const size_t end = std::min(p + 2 + len, n);
+      while (q < end && (d[q] >> 4) <= 1) {
+        if ((d[q] & 15) <= 3) quant_defined[d[q] & 15] = true;
+        q += 1 + 64 * (size_t(d[q] >> 4) + 1);
+      }
+    }
+    // SOF0-2 (what stb decodes): Nf components of (id, sampling, quantisation table).
+    if ((m == 0xc0 || m == 0xc1 || m == 0xc2) && !have_frame && p + 10 <= n) {
+      have_frame = true;
+      const size_t nf = d[p + 9];
+      for (size_t c = 0; c < nf && p + 12 + 3 * c < n; ++c) frame_tables.emplace_back(d[p + 10 + 3 * c], d[p + 12 + 3 * c]);
+    }
     // A scan that decodes with a Huffman table no DHT defined makes stb read its never-initialised
     // table memory (found by fuzz/fuzz_image: a negative symbol index, varying from run to run).
     // DC scans (Ss = 0) that are not refinements (Ah = 0) use DC tables; scans with Se > 0 use AC tables.
@@ -82,6 +110,12 @@ Status check_jpeg_huffman_tables(const uint8_t* d, size_t n, const std::string& 
           if ((ss == 0 && ah == 0 && (dc > 3 || !defined[0][dc])) || (se > 0 && (ac > 3 || !defined[1][ac])))
             return parse_error(source + ": corrupt JPEG: the scan at byte " + std::to_string(p) +
                                " uses a Huffman table that no DHT segment defines");
+          // A component the frame does not have, or a table id over 3: stb refuses those itself.
+          const uint8_t id = d[p + 5 + 2 * c];
+          for (const auto& [frame_id, quant] : frame_tables)
+            if (frame_id == id && quant <= 3 && !quant_defined[quant])
+              return parse_error(source + ": corrupt JPEG: the scan at byte " + std::to_string(p) + " uses quantisation table " +
+                                 std::to_string(quant) + ", which no DQT segment before it defines");
         }
       }
     }
@@ -129,7 +163,7 @@ Status check_header(const uint8_t* data, size_t size, const std::string& source,
   if (size > size_t(INT_MAX)) return unsupported(source + ": image file larger than 2 GiB");
   const int len = int(size);
 
-  if (looks_like_jpeg(data, size)) GS_RETURN_IF_ERROR(check_jpeg_huffman_tables(data, size, source));
+  if (looks_like_jpeg(data, size)) GS_RETURN_IF_ERROR(check_jpeg_tables(data, size, source));
   if (looks_like_png(data, size)) GS_RETURN_IF_ERROR(check_png_chunks(data, size, source));
   uint64_t pw = 0, ph = 0;
   if (png_sides(data, size, &pw, &ph) && (pw == 0 || ph == 0 || pw > uint64_t(kMaxImageSide) || ph > uint64_t(kMaxImageSide)))

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
-// The general binary little-endian PLY header reader of ply_header.h: element and property lines,
-// the PLY type names and their aliases, and overflow-safe counts.
+// The PLY header reader of ply_header.h: element and property lines, the PLY type names and their
+// aliases, and overflow-safe counts.
 #include "ply_header.h"
 
 #include <algorithm>
@@ -11,14 +11,22 @@ namespace {
 
 constexpr size_t kMaxHeaderBytes = 1 << 16;
 
-// Canonical name and size of a PLY scalar type (both spellings of the PLY spec); bytes 0 if unknown.
-void scalar_type(const std::string& t, std::string* canonical, size_t* bytes) {
-  static const struct { const char* a; const char* b; size_t bytes; } kTypes[] = {
-      {"char", "int8", 1},   {"uchar", "uint8", 1},   {"short", "int16", 2},   {"ushort", "uint16", 2},
-      {"int", "int32", 4},   {"uint", "uint32", 4},   {"float", "float32", 4}, {"double", "float64", 8}};
+// Canonical name, enum and size of a PLY scalar type (both spellings of the PLY spec); bytes 0 if
+// unknown.
+void scalar_type(const std::string& t, std::string* canonical, PlyScalar* scalar, size_t* bytes) {
+  static const struct {
+    const char* a;
+    const char* b;
+    PlyScalar scalar;
+    size_t bytes;
+  } kTypes[] = {{"char", "int8", PlyScalar::kInt8, 1},       {"uchar", "uint8", PlyScalar::kUint8, 1},
+                {"short", "int16", PlyScalar::kInt16, 2},    {"ushort", "uint16", PlyScalar::kUint16, 2},
+                {"int", "int32", PlyScalar::kInt32, 4},      {"uint", "uint32", PlyScalar::kUint32, 4},
+                {"float", "float32", PlyScalar::kFloat32, 4}, {"double", "float64", PlyScalar::kFloat64, 8}};
   for (const auto& k : kTypes)
     if (t == k.a || t == k.b) {
       *canonical = k.b;
+      *scalar = k.scalar;
       *bytes = k.bytes;
       return;
     }
@@ -45,13 +53,18 @@ uint64_t PlyHeader::body_bytes() const {
   return total;
 }
 
-Status parse_ply_header(const uint8_t* data, size_t size, const std::string& src, uint64_t max_count, PlyHeader* out) {
+Status parse_ply_header(const uint8_t* data, size_t size, const std::string& src, uint64_t max_count, PlyHeader* out,
+                        bool accept_ascii) {
   const std::string head(reinterpret_cast<const char*>(data), std::min(size, kMaxHeaderBytes));
   if (head.compare(0, 4, "ply\n") != 0 && head.compare(0, 5, "ply\r\n") != 0)
     return parse_error(src + ": not a PLY file (no 'ply' line at the start)");
-  const size_t end = head.find("end_header\n");
+  // The header ends with the line "end_header", which (like "ply") may end in "\r\n".
+  size_t end = head.find("end_header");
+  while (end != std::string::npos && head.compare(end + 10, 1, "\n") != 0 && head.compare(end + 10, 2, "\r\n") != 0)
+    end = head.find("end_header", end + 10);
   if (end == std::string::npos) return parse_error(src + ": PLY header has no 'end_header' line (truncated?)");
-  out->bytes = end + 11;
+  out->bytes = end + (head[end + 10] == '\r' ? 12 : 11);
+  out->ascii = false;
   out->elements.clear();
 
   std::istringstream lines(head.substr(0, end));
@@ -69,7 +82,9 @@ Status parse_ply_header(const uint8_t* data, size_t size, const std::string& src
     if (kw == "format") {
       std::string fmt, ver;
       ls >> fmt >> ver;
-      if (fmt != "binary_little_endian") return unsupported(at + "format '" + fmt + "' (only binary_little_endian)");
+      if (fmt == "ascii" && accept_ascii) out->ascii = true;
+      else if (fmt != "binary_little_endian")
+        return unsupported(at + "format '" + fmt + (accept_ascii ? "' (ascii or binary_little_endian)" : "' (only binary_little_endian)"));
       if (ver != "1.0") return unsupported(at + "format version '" + ver + "'");
       format_ok = true;
     } else if (kw == "element") {
@@ -96,17 +111,18 @@ Status parse_ply_header(const uint8_t* data, size_t size, const std::string& src
       p.spelled = type;
       if (type == "list") {  // list <count type> <item type> <name>: records of variable size
         std::string count_type, item_type, canonical;
+        PlyScalar scalar;
         size_t count_bytes = 0, item_bytes = 0;
         ls >> count_type >> item_type >> name;
-        scalar_type(count_type, &canonical, &count_bytes);
-        scalar_type(item_type, &canonical, &item_bytes);
+        scalar_type(count_type, &canonical, &scalar, &count_bytes);
+        scalar_type(item_type, &canonical, &scalar, &item_bytes);
         if (count_bytes == 0 || item_bytes == 0)
           return parse_error(at + "list property with unknown types '" + count_type + "' '" + item_type + "'");
         p.type = "list";
         e.has_list = true;
       } else {
         ls >> name;
-        scalar_type(type, &p.type, &p.bytes);
+        scalar_type(type, &p.type, &p.scalar, &p.bytes);
         if (p.bytes == 0) return parse_error(at + "unknown property type '" + type + "'");
       }
       p.name = name;

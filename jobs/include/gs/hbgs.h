@@ -4,10 +4,11 @@
 //
 // Layers, each using only those below it: gs/status.h, span.h, stats.h, random.h (hbgs::base);
 // gs/simd/ kernels (hbgs::simd); gs/platform/ threads, clock, files (hbgs::platform); gs/camera.h,
-// render.h, gs/pose/pose.h (hbgs::core); gs/io/ COLMAP, images, PLY (hbgs::io); gs/metrics/ PSNR,
-// SSIM, LPIPS (hbgs::metrics); gs/model/ the hybrid anchor model and trainer, gs/pose/register.h
-// and point_alignment.h (hbgs::model);
-// gs/capture/ cameras, video, COLMAP driver (hbgs::capture); gs/jobs/ whole jobs (hbgs::jobs).
+// render.h, gs/pose/pose.h (hbgs::core); gs/io/ COLMAP, NeRF-style transforms.json, images,
+// composites, PLY and the splat exchange formats (hbgs::io); gs/metrics/ PSNR, SSIM, LPIPS
+// (hbgs::metrics); gs/model/ the hybrid anchor model, trainer, backgrounds and baking to plain
+// Gaussians, gs/pose/register.h and point_alignment.h (hbgs::model); gs/capture/ cameras, video,
+// COLMAP driver (hbgs::capture); gs/jobs/ whole jobs, export included (hbgs::jobs).
 //
 // Lifecycle: create (validate everything, plan and allocate) -> run (allocation-free calls) ->
 // destroy. Renderer::plan/init, ModelRenderer::init, Registrar::create and Trainer::create size
@@ -22,20 +23,26 @@
 
 #include "gs/camera.h"
 #include "gs/io/colmap.h"
+#include "gs/io/composite.h"
 #include "gs/io/image.h"
 #include "gs/io/ply.h"
+#include "gs/io/splat_formats.h"
+#include "gs/io/transforms.h"
 #include "gs/jobs/compact.h"
 #include "gs/jobs/evaluate.h"
+#include "gs/jobs/export.h"
 #include "gs/jobs/pose_truth.h"
 #include "gs/jobs/register.h"
 #include "gs/jobs/render.h"
 #include "gs/jobs/run_folder.h"
 #include "gs/jobs/train.h"
+#include "gs/model/background.h"
+#include "gs/model/bake.h"
 #include "gs/model/compact_model.h"
 #include "gs/model/evaluate.h"
 #include "gs/model/hybrid_model.h"
-#include "gs/pose/register.h"
 #include "gs/model/trainer.h"
+#include "gs/pose/register.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
 #include "gs/render.h"

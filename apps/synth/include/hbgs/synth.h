@@ -96,9 +96,9 @@ gs::Status generate_path(const PathOptions& options, const std::string& out_dir)
 // transforms_train.json / transforms_test.json (every 8th view by name, index 0, 8, ..., in the test
 // file, as hbgs splits the COLMAP model): file_path "./images/NNNN" without extension, fl_x, fl_y,
 // cx, cy, w, h and camera_angle_x, transform_matrix = the OpenGL camera-to-world of the same pose
-// (gs::io::transform_matrix_from_pose), and for kCluttered each frame's "mask_path". No point
-// cloud is named in them: hbgs initialises such a dataset with random points (like NeRF's synthetic
-// scenes).
+// (gs::io::write_transforms_json, "camera_model" PINHOLE), and for kCluttered each frame's
+// "mask_path". No point cloud is named in them: hbgs initialises such a dataset with random points
+// (like NeRF's synthetic scenes).
 constexpr double kObjectCentre[3] = {0.0, 0.0, 0.25};
 constexpr double kObjectRadius = 0.57;
 

@@ -29,7 +29,14 @@ pose::PoseErrors errors_for(const std::vector<Pose>& estimated, const std::vecto
                             const PoseTruth& truth, bool align);
 
 // Writes <out_dir>/{cameras,images,points3D}.txt: the dataset's own COLMAP model with the poses of
-// the named images replaced (names[i] gets poses[i]).
+// the named images replaced (names[i] gets poses[i]); for a NeRF-style dataset, a model made of its
+// views (io::read_dataset_files: PINHOLE or OPENCV cameras, images named by their path relative to
+// the json, no points). Beside it <out_dir>/transforms.json (kPosedTransformsJson): the same views
+// and poses in nerfstudio's layout (io::write_transforms_json), file_path and mask_path relative to
+// out_dir leading to the dataset's own images and masks (so ns-train and other tools read them in
+// place; hbgs's loader refuses '..' in dataset paths), with the dataset's split as
+// train_filenames / val_filenames / test_filenames (val = test) when it has test views.
+inline constexpr const char* kPosedTransformsJson = "transforms.json";
 Status write_posed_model(const std::string& dataset_root, const std::vector<std::string>& names,
                          const std::vector<Pose>& poses, const std::string& out_dir);
 

@@ -90,10 +90,17 @@ std::string default_lpips_dir();
 Expected<std::unique_ptr<metrics::LpipsAlex>> load_lpips(const std::string& explicit_dir, int threads,
                                                          std::string* note);
 
-// Refuses an output folder that exists as a file, that is the dataset folder, or that lies inside
-// the dataset's images*/ or sparse/ folders (symbolic links resolved): renders or a run there would
-// change the dataset. A sub-folder of its own ("DATASET/renders") is allowed. Render and train call
-// it before writing anything.
+// A dataset as the jobs take it: a folder (COLMAP, or NeRF-style with transforms.json or
+// transforms_train.json), or a NeRF-style transforms .json file (what io::load_dataset reads).
+// Refuses anything else with a message giving both forms; io::load_dataset checks the contents.
+Status check_dataset_path(const std::string& dataset);
+// The folder a dataset lives in: the path itself for a folder, the json's folder for a .json file.
+std::string dataset_folder(const std::string& dataset);
+
+// Refuses an output folder that exists as a file, that is the dataset folder (for a .json dataset,
+// its folder), or that lies inside the dataset's images*/ or sparse/ folders (symbolic links
+// resolved): renders or a run there would change the dataset. A sub-folder of its own
+// ("DATASET/renders") is allowed. Render and train call it before writing anything.
 Status check_output_outside_dataset(const std::string& out, const std::string& dataset);
 
 std::string absolute_path(const std::string& path);

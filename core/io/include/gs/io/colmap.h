@@ -177,4 +177,31 @@ struct Dataset {
 // files and sizes), and is undistorted and downscaled with the image (outside the distorted image: 0).
 Expected<Dataset> load_dataset(const std::string& root, const DatasetOptions& options = {});
 
+// A dataset's views as its files describe them, without decoding any pixels: what writers of posed
+// models start from (hbgs train --optimize-poses writes refined_poses/, hbgs register --views
+// writes registered/). Views, names, split and mask files are those load_dataset(root, options)
+// would give; cameras are as stored (the image files' size, distortion terms kept).
+struct DatasetFileView {
+  std::string name;        // as DatasetView::name
+  std::string image_path;  // the image file (root or the json's folder joined with the name)
+  // The mask file load_dataset reads for this view (nerfstudio's mask_path or the one found in
+  // options.masks_dir); "" when there is none (no masks, the image's alpha only, or none found).
+  std::string mask_path;
+  // The view's camera before undistortion and downscaling, as model "PINHOLE" (fx, fy, cx, cy) or
+  // "OPENCV" (fx, fy, cx, cy, k1, k2, p1, p2) whatever the stored model (SIMPLE_RADIAL is OPENCV with
+  // fx = fy and k2 = p1 = p2 = 0); id is the model camera's id.
+  ColmapCamera camera;
+  size_t model_image = 0;  // index into DatasetFiles::model.images: the view's id and pose
+  bool is_test = false;    // as DatasetView::is_test
+};
+struct DatasetFiles {
+  DatasetLayout layout = DatasetLayout::kColmap;  // never kAuto
+  // COLMAP layout: the model as read from <root>/<sparse_dir> (its cameras, images and points as
+  // stored). Transforms layout: one PINHOLE or OPENCV camera per distinct set of intrinsics, one
+  // image per view (named as the view, the pose from its transform_matrix), no points.
+  ColmapModel model;
+  std::vector<DatasetFileView> views;  // sorted by name, as Dataset::views
+};
+Expected<DatasetFiles> read_dataset_files(const std::string& root, const DatasetOptions& options = {});
+
 }  // namespace gs::io

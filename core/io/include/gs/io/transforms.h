@@ -5,7 +5,8 @@
 // point cloud), the pose conversion from their OpenGL camera-to-world matrices to hbgs's
 // world-to-camera poses, point-cloud PLY files, and the random initial points used when such a
 // dataset has none. gs::io::load_dataset (gs/io/colmap.h) reads these folders; this header exposes
-// the parts for tests, the fuzz harnesses and writers (hbgs synth --object).
+// the parts for tests, the fuzz harnesses and writers, and the transforms.json writer (hbgs synth
+// --object, and the refined and registered poses of hbgs train and hbgs register).
 #pragma once
 
 #include <cstdint>
@@ -14,6 +15,7 @@
 #include <vector>
 
 #include "gs/camera.h"
+#include "gs/io/colmap.h"
 #include "gs/status.h"
 
 namespace gs::io {
@@ -67,6 +69,25 @@ Status parse_transforms_json(const std::string& text, const std::string& source,
 std::string pose_from_transform_matrix(const double c2w[16], double qvec[4], double tvec[3]);
 // The inverse: the transform_matrix of a COLMAP (qvec, tvec) pose (used by writers).
 void transform_matrix_from_pose(const double qvec[4], const double tvec[3], double c2w[16]);
+
+// Writes a transforms file in nerfstudio's layout (what its dataparser, instant-ngp and hbgs read):
+// "camera_model" ("OPENCV" when a frame has a non-zero k1, k2, p1 or p2, else "PINHOLE"), the
+// intrinsics fl_x, fl_y, cx, cy, w, h (and k1, k2, p1, p2 for OPENCV; camera_angle_x/y when set) at
+// the top level when every frame has the same ones, else in each frame, then "frames" with
+// "file_path", "mask_path" (when not empty) and the 4x4 "transform_matrix", and the split lists and
+// "ply_file_path" when set. file_path and mask_path are written as given (relative to the json's
+// folder; hbgs's loader refuses absolute paths and '..', other tools follow them).
+// Checks: at least one frame, a non-empty file_path, every frame's fl_x, fl_y, cx, cy, w, h set
+// and finite (focal lengths > 0, sizes in 1..kMaxImageSide), no non-zero k3/k4, and a
+// transform_matrix that is a camera pose (pose_from_transform_matrix); errors name `source` and
+// the frame. Doubles are written in the shortest form that reads back to the same value.
+Expected<std::string> encode_transforms_json(const TransformsFile& file, const std::string& source);
+// encode_transforms_json to a file, atomically (platform::write_file_atomic).
+Status write_transforms_json(const std::string& path, const TransformsFile& file);
+// The intrinsics of a "PINHOLE" (fx, fy, cx, cy), "SIMPLE_PINHOLE" (f, cx, cy) or "OPENCV" (fx, fy,
+// cx, cy, k1, k2, p1, p2) camera (DatasetFileView::camera in gs/io/colmap.h) as a frame's
+// fl_x, fl_y, cx, cy, w, h (and k1, k2, p1, p2); other models are refused naming the camera.
+Expected<TransformsIntrinsics> transforms_intrinsics(const ColmapCamera& camera);
 
 // A point cloud: positions and 8-bit colours.
 struct PointCloud {
