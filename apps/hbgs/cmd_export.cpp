@@ -27,10 +27,12 @@ int run_export(ExportCli& cli) {
               s.seconds);
   std::printf("  %zu Gaussians of %zu candidates (%zu seen by a training view), %.3f MB (%.1f bytes each)\n", s.gaussians,
               s.bake.candidates, s.bake.seen, double(s.bytes) / 1e6, s.gaussians ? double(s.bytes) / double(s.gaussians) : 0.0);
-  std::printf("  against the model's renders of the training views: fit %.2f dB (%.1f s)", s.bake.psnr_fit, s.bake.fit_seconds);
-  if (a.distill_iterations > 0)
-    std::printf(", after %d distillation steps %.2f dB (%.1f s)", a.distill_iterations, s.bake.psnr_distilled, s.bake.distill_seconds);
-  std::printf("\n");
+  if (s.bake.candidates > 0) {
+    std::printf("  against the model's renders of the training views: fit %.2f dB (%.1f s)", s.bake.psnr_fit, s.bake.fit_seconds);
+    if (a.distill_iterations > 0)
+      std::printf(", after %d distillation steps %.2f dB (%.1f s)", a.distill_iterations, s.bake.psnr_distilled, s.bake.distill_seconds);
+    std::printf("\n");
+  }
   if (s.evaluated)
     std::printf("  test PSNR (%zu views, 8-bit): model %.3f dB, exported %.3f dB (%+.3f dB)\n", s.model_eval.views.size(),
                 s.model_eval.psnr, s.baked_eval.psnr, s.baked_eval.psnr - s.model_eval.psnr);
@@ -44,7 +46,9 @@ Command add_export_command(CLI::App& parent) {
   gs::jobs::ExportRunOptions* o = &args->options;
   CLI::App* sub = parent.add_subcommand(
       "export", "Bake a trained model into plain Gaussians (SH colour) for splat viewers: 3DGS .ply, .compressed.ply, .splat, .spz");
-  sub->add_option("model", o->input, "Run folder (from hbgs train) or model file (.hbgs, .hbgc)")->required();
+  sub->add_option("model", o->input,
+                  "Run folder (from hbgs train) or model file (.hbgs, .hbgc) to bake, or a splat file to convert")
+      ->required();
   sub->add_option("--out", o->out, "File to write; its extension picks the format (.ply, .compressed.ply, .splat, .spz)")->required();
   sub->add_option("--sh-degree", o->sh_degree, "Degree of the SH colour (0-3; .splat keeps 0)")->capture_default_str()->check(CLI::Range(0, 3));
   sub->add_option("--distill", o->distill_iterations,

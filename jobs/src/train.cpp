@@ -5,6 +5,7 @@
 #include "gs/jobs/train.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -277,6 +278,13 @@ Expected<ResolvedTraining> resolve_training(const TrainRunOptions& a) {
   t.lr_pose_rotation_init = t.lr_pose_translation_init = a.pose_lr;
   // Image features follow moving poses; with fixed poses they never change.
   t.image_feature_refresh = a.feature_refresh >= 0 ? a.feature_refresh : (a.optimize_poses ? 250 : 0);
+  if (const char* e = std::getenv("HBGS_EXP_DENSIFY")) {  // EXPERIMENT (removed before commit)
+    const double f = std::min(1.0, double(a.iterations) / 30000.0) * std::atof(e);
+    t.stat_start = std::max(50, int(500 * f));
+    t.update_from = std::max(100, int(1500 * f));
+    t.update_interval = std::max(25, int(100 * f));
+    t.update_until = std::max(t.update_from + t.update_interval, int(15000 * f));
+  }
   if (a.optimize_poses) {
     t.pose_warmup = std::max(1, a.iterations / 10);
     if (a.register_passes > 0) {
@@ -433,7 +441,13 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
   d.input_errors = d.errors(input, true);
   d.pool = std::make_unique<platform::ThreadPool>(options.threads);
   if (options.optimize_poses && options.pose_init == "sfm" && !options.resume) GS_RETURN_IF_ERROR(d.init_by_sfm(work_dir, say));
-  if (options.optimize_poses && options.point_align && !options.resume) GS_RETURN_IF_ERROR(d.align_to_points(say));
+  // Point alignment matches the images to the points' colours: random points (a NeRF-style dataset
+  // without a point cloud) are grey and lie nowhere in particular, so they would pull the poses away.
+  const bool points_meaningful = d.dataset.points_source != io::PointsSource::kRandom;
+  if (options.optimize_poses && options.point_align && !options.resume) {
+    if (points_meaningful) GS_RETURN_IF_ERROR(d.align_to_points(say));
+    else say(text_event(TrainEvent::kNote, "point alignment skipped: the dataset's points are random (no point cloud)"));
+  }
 
   d.kernels = options.isa.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(options.isa.c_str());
   if (!d.kernels) return invalid_argument("--isa: kernel table '" + options.isa + "' is not compiled in or not supported by this CPU");

@@ -125,7 +125,7 @@ TEST_CASE("load_dataset: masks/ in COLMAP's naming (<image>.png) and the same-na
   }
 }
 
-TEST_CASE("load_dataset: mask files in grey, RGB, RGBA and 0/1; alpha and a mask give their minimum") {
+TEST_CASE("load_dataset: mask files in grey, RGB, RGBA and 0/1 and alpha with a mask give their minimum") {
   TempDir dir;
   write_model(dir.path(), 4, 1, {"grey.png", "rgb.png", "rgba.png", "binary.png", "both.png"});
   const Image8 rgb{4, 1, 3, std::vector<uint8_t>(12, 50)};

@@ -130,7 +130,7 @@ Expected<GaussianCloud> parse_spz_header_case(uint32_t magic, uint32_t version, 
 }
 #endif
 
-TEST_CASE(".splat round trip: float32 position and scale; 8-bit colour and alpha and rotation") {
+TEST_CASE(".splat round trip: float32 position and scale with 8-bit colour and alpha and rotation") {
   for (int degree : {0, 3}) {
     const GaussianCloud c = test::make_test_cloud(500, degree, 11u + uint32_t(degree));
     const std::vector<uint8_t> bytes = bytes_of(encode_antimatter_splat(c));

@@ -363,7 +363,7 @@ TEST_CASE("load_dataset: transforms.json distortion is undistorted by the COLMAP
   CHECK(b->views[0].image.pixels != img.pixels);
 }
 
-TEST_CASE("load_dataset: transforms paths may not leave the folder; broken transforms folders name the frame") {
+TEST_CASE("load_dataset: transforms paths may not leave the folder and broken transforms folders name the frame") {
   TempDir dir;
   put_png(dir / "a.png", rgba_image(8, 6, 1));
   put_png(dir / "b.png", rgba_image(9, 6, 2));

@@ -19,7 +19,7 @@
 namespace gs::model {
 namespace {
 
-TEST_CASE("background: black, white, random and r,g,b parse and name back to themselves; bad text is refused") {
+TEST_CASE("background: black, white, random and r,g,b parse and name back to themselves and bad text is refused") {
   for (const char* text : {"black", "white", "random", "0.5,0.25,1", "0,0,0.125"}) {
     Expected<Background> b = parse_background(text);
     REQUIRE_MESSAGE(b.ok(), text);
@@ -45,7 +45,7 @@ io::Image8 solid(int w, int h, int channels, uint8_t value) {
   return im;
 }
 
-TEST_CASE("composite: without a mask the target is the box mean; with one, coverage mixes photo and background") {
+TEST_CASE("composite: without a mask the target is the box mean and with one coverage mixes photo and background") {
   io::Image8 photo = solid(6, 4, 3, 0);
   for (size_t i = 0; i < photo.pixels.size(); ++i) photo.pixels[i] = uint8_t((i * 37) % 256);
   const float bg[3] = {1.0f, 0.5f, 0.25f};

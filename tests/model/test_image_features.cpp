@@ -294,7 +294,7 @@ TEST_CASE("image features: moved camera poses are re-read") {
   if (want >= 0) check_features(rig, p, after, want);
 }
 
-TEST_CASE("image features, visible mode: the colour mean and spread over the views that see the anchor unhidden") {
+TEST_CASE("image features in visible mode: the colour mean and spread over the views that see the anchor unhidden") {
   Rig rig;
   std::vector<const Camera*> cp;
   std::vector<const io::Image8*> ip;

@@ -2,8 +2,9 @@
 // The export job (`hbgs export`): a trained anchor model (run folder or model file, float or compact)
 // baked into plain Gaussians with SH colour over its dataset's training cameras (gs/model/bake.h)
 // and written in the splat format the output's extension names (3DGS PLY, compressed.ply, .splat,
-// .spz: gs/io/splat_formats.h), atomically; optionally measured: test PSNR of the model and of the
-// baked Gaussians as written (read back from the file, so the format's quantisation counts).
+// .spz: gs/io/splat_formats.h), atomically; or a splat file converted to another format as it is.
+// Optionally measured: test PSNR of the input and of the Gaussians as written (read back from the
+// file, so the format's quantisation counts).
 #pragma once
 
 #include <cstdint>
@@ -18,7 +19,7 @@
 namespace gs::jobs {
 
 struct ExportRunOptions {
-  std::string input;        // run folder or model file (.hbgs or .hbgc)
+  std::string input;        // run folder, model file (.hbgs or .hbgc) or splat file (converted, with --dataset to measure)
   std::string out;          // the file to write; its extension picks the format
   std::string dataset;      // "" : the one in the run's run.json
   int max_width = -1;       // -1: as trained
