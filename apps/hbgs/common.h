@@ -37,6 +37,7 @@ Command add_train_command(CLI::App& parent);
 Command add_eval_command(CLI::App& parent);
 Command add_compact_command(CLI::App& parent);
 Command add_export_command(CLI::App& parent);
+Command add_report_command(CLI::App& parent);
 Command add_demo_command(CLI::App& parent);
 Command add_register_command(CLI::App& parent);
 Command add_ingest_command(CLI::App& parent);

@@ -11,6 +11,25 @@
 
 namespace gs::jobs {
 
+Status check_bake_input(const std::string& input) {
+  if (!platform::file_exists(input)) return invalid_argument(input + " not found");
+  if (is_splat_file(input)) return invalid_argument(input + " already holds plain Gaussians; only anchor models are baked");
+  if (!is_model_input(input))
+    return invalid_argument(input + " is neither a run folder (with run.json or model.hbgs) nor a model file (.hbgs, .hbgc)");
+  return Status::Ok();
+}
+
+Expected<GaussianCloud> bake_over_training_views(const ModelViews& loaded, const model::Background& background,
+                                                 model::BakeOptions options, platform::ThreadPool* pool,
+                                                 model::BakeStats* stats) {
+  std::vector<Camera> train;
+  for (const io::DatasetView& v : loaded.data->dataset.views)
+    if (!v.is_test) train.push_back(v.camera);
+  if (train.empty()) return invalid_argument(loaded.source.dataset + ": no training views to bake over");
+  std::copy(background.rgb, background.rgb + 3, options.background);
+  return model::bake_model(loaded.model, train, options, pool, stats);
+}
+
 Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
   if (a.out.empty()) return invalid_argument("--out: the file to write is required (its extension picks the format: " +
                                              std::string(io::supported_splat_extensions()) + ")");
@@ -18,10 +37,7 @@ Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
   if (!format.ok()) return Status(format.status().code(), "--out: " + format.status().message());
   if (a.sh_degree < 0 || a.sh_degree > 3) return invalid_argument("--sh-degree must be 0-3");
   if (a.distill_iterations < 0) return invalid_argument("--distill must be 0 or more");
-  if (!platform::file_exists(a.input)) return invalid_argument(a.input + " not found");
-  if (is_splat_file(a.input)) return invalid_argument(a.input + " already holds plain Gaussians; hbgs export bakes anchor models");
-  if (!is_model_input(a.input))
-    return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs) nor a model file (.hbgs, .hbgc)");
+  GS_RETURN_IF_ERROR(check_bake_input(a.input));
   const double t0 = platform::now_seconds();
   // The cameras of every view and the test views' images (the training images are not needed).
   Expected<ModelViews> loaded = load_model_views(a.input, a.dataset, a.max_width, "test");
@@ -32,21 +48,16 @@ Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
   if (absolute_path(a.out) == absolute_path(s.source.model_path)) return invalid_argument("--out " + a.out + " is the input model");
   Expected<model::Background> background = model_background(s.source, "");
   if (!background.ok()) return background.status();
-  std::vector<Camera> train;
   std::vector<const io::DatasetView*> test;
-  for (const io::DatasetView& v : loaded->data->dataset.views) {
+  for (const io::DatasetView& v : loaded->data->dataset.views)
     if (v.is_test) test.push_back(&v);
-    else train.push_back(v.camera);
-  }
-  if (train.empty()) return invalid_argument(s.source.dataset + ": no training views to bake over");
 
   platform::ThreadPool pool(a.threads);
   model::BakeOptions bo;
   bo.sh_degree = *format == io::SplatFormat::kAntimatterSplat ? 0 : a.sh_degree;  // .splat stores colour only
   bo.distill_iterations = a.distill_iterations;
   bo.seed = a.seed;
-  std::copy(background->rgb, background->rgb + 3, bo.background);
-  Expected<GaussianCloud> cloud = model::bake_model(loaded->model, train, bo, &pool, &s.bake);
+  Expected<GaussianCloud> cloud = bake_over_training_views(*loaded, *background, bo, &pool, &s.bake);
   if (!cloud.ok()) return cloud.status();
   GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *cloud));
   s.gaussians = cloud->size();
