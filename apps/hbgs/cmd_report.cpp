@@ -10,7 +10,6 @@
 #include "gs/jobs/report.h"
 
 namespace hbgs::cli {
-namespace {
 
 int run_report(const gs::jobs::ReportRunOptions& a) {
   gs::jobs::ReportRunSummary s;
@@ -27,8 +26,6 @@ int run_report(const gs::jobs::ReportRunOptions& a) {
   std::printf("\n");
   return kExitOk;
 }
-
-}  // namespace
 
 Command add_report_command(CLI::App& parent) {
   auto a = std::make_shared<gs::jobs::ReportRunOptions>();

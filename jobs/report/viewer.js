@@ -25,8 +25,9 @@
 // normalised (all zero: identity); scale linear.
 //
 // URL fragment: #view=NAME or #view=INDEX opens that dataset camera with the canvas at exactly its
-// width x height (one canvas pixel per image pixel; the page's tests screenshot it). `&tiles=1`
-// widens each footprint to hbgs's tile rectangle (for comparisons). window.hbgsViewer reports the
+// width x height (one canvas pixel per image pixel; the page's tests screenshot it). For
+// comparisons: `&tiles=1` widens each footprint to hbgs's tile rectangle, `&blend=8bit` blends in
+// the 8-bit canvas instead of the float buffer. window.hbgsViewer reports the
 // state (ready, the view shown, the precision used, frames drawn) for scripts.
 'use strict';
 
@@ -296,11 +297,12 @@ void main() {
   // none (the canvas's 8 bits, which round after every blend).
   const floatTargets = !!gl.getExtension('EXT_color_buffer_float');
   const floatBlend = floatTargets && !!gl.getExtension('EXT_float_blend');
-  const accumulationFormat = floatBlend ? gl.RGBA32F : floatTargets ? gl.RGBA16F : null;
+  let accumulationFormat = floatBlend ? gl.RGBA32F : floatTargets ? gl.RGBA16F : null;
   viewerState.precision = floatBlend ? 'float32' : floatTargets ? 'float16' : '8-bit';
   let accumulation = null;  // {texture, framebuffer, width, height}
+  let force8Bit = false;    // `&blend=8bit`: blend in the canvas itself (to measure what precision buys)
   function accumulationTarget(width, height) {
-    if (!accumulationFormat) return null;
+    if (!accumulationFormat || force8Bit) return null;
     if (accumulation && accumulation.width === width && accumulation.height === height) return accumulation;
     if (accumulation) { gl.deleteFramebuffer(accumulation.framebuffer); gl.deleteTexture(accumulation.texture); }
     const texture = gl.createTexture();
@@ -314,10 +316,10 @@ void main() {
     gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, texture, 0);
     const complete = gl.checkFramebufferStatus(gl.FRAMEBUFFER) === gl.FRAMEBUFFER_COMPLETE;
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-    if (!complete) {
+    if (!complete) {  // offered but not renderable here: blend in the canvas from now on
       gl.deleteFramebuffer(framebuffer);
       gl.deleteTexture(texture);
-      viewerState.precision = '8-bit';
+      accumulationFormat = null;
       return (accumulation = null);
     }
     return (accumulation = { texture, framebuffer, width, height });
@@ -422,6 +424,7 @@ void main() {
     gl.bindBuffer(gl.ARRAY_BUFFER, orderBuffer);
     gl.bufferSubData(gl.ARRAY_BUFFER, 0, order.subarray(0, n));
     const target = accumulationTarget(W, H);
+    viewerState.precision = target ? (accumulationFormat === gl.RGBA32F ? 'float32' : 'float16') : '8-bit';
     gl.bindFramebuffer(gl.FRAMEBUFFER, target ? target.framebuffer : null);
     gl.viewport(0, 0, W, H);
     gl.clearColor(background[0], background[1], background[2], 1);
@@ -532,6 +535,7 @@ void main() {
   function openFromLocation(fallBack) {
     const params = new URLSearchParams(location.hash.replace(/^#/, ''));
     tilesMode = params.get('tiles') === '1';
+    force8Bit = params.get('blend') === '8bit';
     const wanted = params.get('view');
     if (wanted !== null) {
       let index = cameras.findIndex((c) => c.name === wanted);

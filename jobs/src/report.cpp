@@ -359,7 +359,10 @@ Status report_run(const ReportRunOptions& a, ReportRunSummary* summary) {
     metric("LPIPS", "LPIPS", 4, "");
     metric("PSNR_masked", "PSNR masked", 2, " dB");
     if (splats_psnr_of.count(v.name)) figures += "viewer splats (hbgs render) " + fixed(splats_psnr_of[v.name], 2) + " dB<br>";
-    const std::string size = "width=\"" + std::to_string(v.camera.intr.width) + "\" height=\"" + std::to_string(v.camera.intr.height) + "\"";
+    // Small images are shown enlarged by a whole factor (pixelated: every pixel stays visible).
+    const int zoom = std::max(1, 320 / std::max(1, v.camera.intr.width));
+    const std::string size = "width=\"" + std::to_string(zoom * v.camera.intr.width) + "\" height=\"" +
+                             std::to_string(zoom * v.camera.intr.height) + "\"";
     pairs += "<div class=\"pair\"><figure><img alt=\"render of " + html_escape(v.name) + "\" " + size + " src=\"" +
              data_uri("image/png", render_png) + "\"><figcaption>render</figcaption></figure><figure><img alt=\"ground truth " +
              html_escape(v.name) + "\" " + size + " src=\"" + data_uri("image/png", *truth_png) +
