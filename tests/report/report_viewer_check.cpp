@@ -14,9 +14,10 @@
 // Steps: hbgs synth (64x48, 10 views) -> hbgs train (300 iterations) -> hbgs report -> Chromium.
 // Exit 77 (ctest: skipped) with the reason when chromium or hbgs synth (Embree) is missing.
 // Usage: report_viewer_check --hbgs PATH --work DIR [--chromium PATH] [--min-psnr DB] [--keep PNG]
-//          [--page REPORT.html --dataset DIR [--view NAME]]
+//          [--keep-orbit PNG] [--page REPORT.html --dataset DIR [--view NAME]]
 // --page checks an existing page (its run's dataset given) instead of making the tiny run; --keep
-// saves the viewer's screenshot (docs/report_viewer.png comes from here).
+// saves the viewer's screenshot (docs/report_viewer.png comes from here), --keep-orbit the one
+// after the test's mouse drag (a view between the dataset cameras).
 #include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
@@ -30,6 +31,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -304,14 +306,17 @@ Json wait_for_viewer(Browser& b, int frames_before) {
   return nullptr;
 }
 
-// Screenshot of the canvas (its CSS box at device pixel ratio 1), decoded.
+// Screenshot of the canvas (its CSS box at device pixel ratio 1), decoded. The clip is in document
+// coordinates (captureBeyondViewport), the element's box in the scrolled viewport's.
 gs::io::Image8 screenshot_canvas(Browser& b, const std::string& save_as) {
   Json r = b.call("Runtime.evaluate",
-                  {{"expression", "JSON.stringify(document.getElementById('hbgs-canvas').getBoundingClientRect())"},
+                  {{"expression", "(() => { const b = document.getElementById('hbgs-canvas').getBoundingClientRect(); "
+                                  "return JSON.stringify({left: b.left + window.scrollX, top: b.top + window.scrollY, "
+                                  "width: b.width, height: b.height}); })()"},
                    {"returnByValue", true}});
   if (r.is_null()) return {};
   const Json rect = Json::parse(r["result"].value("value", std::string("{}")), nullptr, false);
-  const Json clip = {{"x", rect.value("left", 0.0) + 0.0}, {"y", rect.value("top", 0.0) + 0.0},
+  const Json clip = {{"x", rect.value("left", 0.0)}, {"y", rect.value("top", 0.0)},
                      {"width", rect.value("width", 0.0)}, {"height", rect.value("height", 0.0)}, {"scale", 1}};
   Json shot = b.call("Page.captureScreenshot", {{"format", "png"}, {"clip", clip}, {"captureBeyondViewport", true}});
   if (shot.is_null()) return {};
@@ -339,7 +344,7 @@ gs::io::Image8 canvas_pixels(Browser& b) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string hbgs, work, chromium, keep, given_page, given_dataset, given_view;
+  std::string hbgs, work, chromium, keep, keep_orbit, given_page, given_dataset, given_view;
   // Thresholds (dB) for the screenshot against hbgs's render, measured with Debian's Chromium 156 and
   // SwiftShader: 67.4 dB on the test's tiny run (87.8 with &tiles=1), 65.3-68.0 on the built-in
   // scene at 3,000 iterations (70.2-75.6 with &tiles=1); blending in 8 bits 48.3-49.8 dB. A wrong
@@ -353,6 +358,7 @@ int main(int argc, char** argv) {
     else if (k == "--chromium") chromium = v;
     else if (k == "--min-psnr") min_psnr = std::atof(v.c_str());
     else if (k == "--keep") keep = v;
+    else if (k == "--keep-orbit") keep_orbit = v;
     else if (k == "--page") given_page = v;
     else if (k == "--dataset") given_dataset = v;
     else if (k == "--view") given_view = v;
@@ -476,6 +482,62 @@ int main(int argc, char** argv) {
     }
   }
   const auto t_browser = std::chrono::steady_clock::now();
+  // The page as a reader opens it (no fragment: the first test view, enlarged), then used: drag to
+  // orbit, right-drag to pan, the wheel, another camera from the list. Errors are collected.
+  if (browser.call("Page.navigate", {{"url", url}}).is_null()) return 1;
+  Json plain = wait_for_viewer(browser, 0);
+  if (plain.is_null()) return 1;
+  std::printf("viewer (page opened without a fragment): %s\n", plain.dump().c_str());
+  {
+    Json r = browser.call("Runtime.evaluate",
+                          {{"expression", "(() => { const c = document.getElementById('hbgs-canvas'); c.scrollIntoView(); "
+                                          "return JSON.stringify(c.getBoundingClientRect()); })()"},
+                           {"returnByValue", true}});
+    const Json rect = r.is_null() ? Json::object() : Json::parse(r["result"].value("value", std::string("{}")), nullptr, false);
+    const double x = rect.value("left", 0.0) + rect.value("width", 0.0) / 2, y = rect.value("top", 0.0) + rect.value("height", 0.0) / 2;
+    auto mouse = [&](const char* type, double mx, double my, const char* button, int buttons) {
+      browser.call("Input.dispatchMouseEvent",
+                   {{"type", type}, {"x", mx}, {"y", my}, {"button", button}, {"buttons", buttons}, {"clickCount", 1}});
+    };
+    int frames = plain.value("frames", 0);
+    // Each step waits for its redraw (the viewer draws once per animation frame, however many
+    // events came in).
+    auto step = [&](const char* what, const std::function<void()>& act) -> Json {
+      act();
+      Json after = wait_for_viewer(browser, frames);
+      if (after.is_null()) {
+        fail("no redraw after " + std::string(what));
+        return nullptr;
+      }
+      frames = after.value("frames", frames);
+      std::printf("  after %s: %s\n", what, after.dump().c_str());
+      return after;
+    };
+    Json orbited = step("a drag (orbit)", [&] {
+      mouse("mousePressed", x, y, "left", 1);
+      mouse("mouseMoved", x + 40, y + 15, "left", 1);
+      mouse("mouseReleased", x + 40, y + 15, "left", 0);
+    });
+    if (!orbited.is_null() && !orbited["view"].is_null()) fail("the drag did not leave the dataset camera");
+    if (!keep_orbit.empty() && !orbited.is_null()) screenshot_canvas(browser, keep_orbit);
+    step("a right drag (pan)", [&] {
+      mouse("mousePressed", x, y, "right", 2);
+      mouse("mouseMoved", x - 10, y + 5, "right", 2);
+      mouse("mouseReleased", x - 10, y + 5, "right", 0);
+    });
+    step("the wheel (zoom)", [&] {
+      browser.call("Input.dispatchMouseEvent", {{"type", "mouseWheel"}, {"x", x}, {"y", y}, {"deltaX", 0}, {"deltaY", 240}});
+    });
+    Json picked = step("picking the last camera of the list", [&] {
+      browser.call("Runtime.evaluate", {{"expression", "(() => { const s = document.getElementById('hbgs-view-select'); "
+                                                       "s.value = String(s.options.length - 2); s.dispatchEvent(new Event('change')); })()"}});
+    });
+    const std::string last_camera = page_data["cameras"].back().value("name", "");
+    if (!picked.is_null() && picked.value("view", Json()).dump() != Json(last_camera).dump())
+      fail("picking " + last_camera + " from the list shows " + picked["view"].dump());
+  }
+  // A fresh load at the test view (not a same-document fragment change).
+  if (browser.call("Page.navigate", {{"url", "about:blank"}}).is_null()) return 1;
   if (browser.call("Page.navigate", {{"url", url + "#view=" + escaped}}).is_null()) return 1;
   Json state = wait_for_viewer(browser, 0);
   if (state.is_null()) return 1;
