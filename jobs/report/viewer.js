@@ -258,8 +258,16 @@ void main() {
     console.error('hbgs viewer: ' + viewerState.error);
     return;
   }
-  const splatProgram = link(splatVertexShader, splatFragmentShader);
-  const resolveProgram = link(resolveVertexShader, resolveFragmentShader);
+  let splatProgram, resolveProgram;
+  try {
+    splatProgram = link(splatVertexShader, splatFragmentShader);
+    resolveProgram = link(resolveVertexShader, resolveFragmentShader);
+  } catch (e) {
+    viewerState.error = String(e.message || e);
+    say('The viewer could not start: ' + viewerState.error);
+    console.error('hbgs viewer: ' + viewerState.error);
+    return;
+  }
   const uniform = (program, name) => gl.getUniformLocation(program, name);
   const u = {
     splats: uniform(splatProgram, 'u_splats'), R: uniform(splatProgram, 'u_R'), t: uniform(splatProgram, 'u_t'),

@@ -223,8 +223,8 @@ std::string metrics_section(const Json& results, const std::vector<std::pair<int
 std::string run_facts(const ModelSource& source, const Json& run, const Json& last, size_t train_views, size_t test_views) {
   std::vector<std::pair<std::string, std::string>> rows;
   rows.emplace_back("run folder", absolute_path(source.run_dir));
-  rows.emplace_back("dataset", source.dataset + " (" + std::to_string(train_views) + " training views, " +
-                                   std::to_string(test_views) + " test views)");
+  auto count = [](size_t n, const char* what) { return std::to_string(n) + " " + what + (n == 1 ? " view" : " views"); };
+  rows.emplace_back("dataset", source.dataset + " (" + count(train_views, "training") + ", " + count(test_views, "test") + ")");
   const Json options = run.contains("options") && run["options"].is_object() ? run["options"] : Json::object();
   auto option = [&](const char* key) -> std::string {
     if (!options.contains(key)) return "";
