@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT
 # Installs what hbgs needs to build and test on Debian 12 (bookworm): compilers, CMake/Ninja, the
-# header and library dependencies, the capture/ingest tools (FFmpeg, libcamera, COLMAP), and the ARM
+# header and library dependencies, the capture/ingest tools (FFmpeg, libcamera, COLMAP), Chromium
+# (headless, for the report page's test), and the ARM
 # cross compilers + qemu-user for the cross test runs.
 # Idempotent: exits early when everything is already installed. Never upgrades and never enables
 # multiarch (both would change unrelated host packages).
@@ -12,7 +13,8 @@ set -euo pipefail
 native=(cmake ninja-build g++ pkg-config libeigen3-dev libxsimd-dev libstb-dev doctest-dev libembree-dev libtbb-dev
         libbenchmark-dev libcli11-dev nlohmann-json3-dev zlib1g-dev
         dpkg-dev file python3  # cpack -G DEB (dpkg-shlibdeps) and scripts/check-install.sh
-        clang libclang-rt-14-dev)  # libFuzzer and ThreadSanitizer builds (scripts/fuzz.sh, scripts/tsan.sh)
+        clang libclang-rt-14-dev  # libFuzzer and ThreadSanitizer builds (scripts/fuzz.sh, scripts/tsan.sh)
+        chromium)  # headless, for the report page's test (tests/report: the viewer's screenshot vs hbgs's render)
 # Capture and ingestion: video decoding (FFmpeg's libraries), libcamera, and the ffmpeg and colmap
 # commands (`hbgs ingest` runs COLMAP; the end-to-end ingest test encodes its video with ffmpeg).
 capture=(libavformat-dev libavcodec-dev libavutil-dev libswscale-dev libcamera-dev ffmpeg colmap)

@@ -20,6 +20,7 @@ namespace {
 struct TrainCli {
   gs::jobs::TrainRunOptions options;
   bool quiet = false;
+  bool report = false;  // hbgs only: write RUN/report.html at the end (hbgs report)
 };
 
 std::string clock_text(double seconds) {
@@ -204,11 +205,27 @@ Command add_train_command(CLI::App& parent) {
   sub->add_flag("--resume", o->resume, "Continue the run in --out from its checkpoint (options default to its run.json)");
   sub->add_flag("--force", o->force, "Overwrite an existing run in --out");
   sub->add_flag("-q,--quiet", args->quiet, "No progress output, only the summary");
+#ifndef HBGS_DEVICE
+  sub->add_flag("--report", args->report, "Write RUN/report.html at the end, as hbgs report RUN does with its defaults");
+#endif
   return {sub, [args, sub] {
             args->options.given.clear();
             for (const CLI::Option* opt : sub->get_options())
               if (opt->count() > 0 && !opt->get_lnames().empty()) args->options.given.push_back(opt->get_lnames().front());
-            return run_train(args->options, args->quiet, nullptr);
+            const int rc = run_train(args->options, args->quiet, nullptr);
+#ifndef HBGS_DEVICE
+            if (rc != kExitOk) return rc;
+            if (!args->report) {
+              std::printf("  report page: hbgs report %s (or train with --report)\n", args->options.out.c_str());
+              return rc;
+            }
+            gs::jobs::ReportRunOptions r;
+            r.run = args->options.out;
+            r.threads = args->options.threads;
+            return run_report(r);
+#else
+            return rc;
+#endif
           }};
 }
 

@@ -11,6 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "gs/jobs/report.h"
 #include "gs/jobs/train.h"
 #include "gs/model/background.h"
 #include "gs/platform/clock.h"
@@ -37,6 +38,7 @@ Command add_train_command(CLI::App& parent);
 Command add_eval_command(CLI::App& parent);
 Command add_compact_command(CLI::App& parent);
 Command add_export_command(CLI::App& parent);
+Command add_report_command(CLI::App& parent);
 Command add_demo_command(CLI::App& parent);
 Command add_register_command(CLI::App& parent);
 Command add_ingest_command(CLI::App& parent);
@@ -50,6 +52,10 @@ int run_bench(const std::vector<std::string>& pass_through);
 // `hbgs train` (also run by `hbgs demo`): the job with its progress on stderr (unless quiet) and
 // the summary on stdout.
 int run_train(const gs::jobs::TrainRunOptions& options, bool quiet, gs::jobs::TrainRunSummary* summary);
+
+// `hbgs report` (also run by `hbgs train --report` and `hbgs demo`): writes the page and prints
+// what it holds. hbgs only (hbgs-device has no report command).
+int run_report(const gs::jobs::ReportRunOptions& options);
 
 // "hbgs <cmd>: error: <message>" on stderr; returns kExitRuntime so callers can `return fail(...)`.
 inline int fail(const char* cmd, const std::string& message) {

@@ -51,6 +51,7 @@ int main(int argc, char** argv) {
       hbgs::cli::add_render_command(app), hbgs::cli::add_demo_command(app),  hbgs::cli::add_bench_command(app),
       hbgs::cli::add_register_command(app), hbgs::cli::add_ingest_command(app),  hbgs::cli::add_capture_command(app),
       hbgs::cli::add_compare_poses_command(app), hbgs::cli::add_compact_command(app), hbgs::cli::add_export_command(app),
+      hbgs::cli::add_report_command(app),
   };
 
   if (hbgs::cli::bench_passes_through(argc, argv)) {

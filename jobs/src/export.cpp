@@ -11,6 +11,77 @@
 
 namespace gs::jobs {
 
+Status check_bake_input(const std::string& input) {
+  if (!platform::file_exists(input)) return invalid_argument(input + " not found");
+  if (is_splat_file(input)) return invalid_argument(input + " already holds plain Gaussians; only anchor models are baked");
+  if (!is_model_input(input))
+    return invalid_argument(input + " is neither a run folder (with run.json or model.hbgs) nor a model file (.hbgs, .hbgc)");
+  return Status::Ok();
+}
+
+Expected<GaussianCloud> bake_over_training_views(const ModelViews& loaded, const model::Background& background,
+                                                 model::BakeOptions options, platform::ThreadPool* pool,
+                                                 model::BakeStats* stats) {
+  std::vector<Camera> train;
+  for (const io::DatasetView& v : loaded.data->dataset.views)
+    if (!v.is_test) train.push_back(v.camera);
+  if (train.empty()) return invalid_argument(loaded.source.dataset + ": no training views to bake over");
+  std::copy(background.rgb, background.rgb + 3, options.background);
+  return model::bake_model(loaded.model, train, options, pool, stats);
+}
+
+namespace {
+
+// A splat file to another format, as it is; measured when a dataset is known (given, or named by a
+// run.json beside the file) and evaluation is asked for.
+Status convert(const ExportRunOptions& a, io::SplatFormat format, double t0, ExportRunSummary* summary) {
+  if (absolute_path(a.out) == absolute_path(a.input)) return invalid_argument("--out " + a.out + " is the input file");
+  ExportRunSummary s;
+  s.format = format;
+  s.source.model_path = a.input;
+  const bool measure = a.evaluate && resolve_model_source(a.input, a.dataset, a.max_width).ok();
+  std::unique_ptr<GaussianCloud> cloud;
+  Expected<ModelViews> loaded = measure ? load_model_views(a.input, a.dataset, a.max_width, "test") : Expected<ModelViews>(ModelViews{});
+  if (!loaded.ok()) return loaded.status();
+  if (measure) {
+    s.source = loaded->source;
+  } else {
+    Expected<GaussianCloud> c = io::read_gaussians(a.input);
+    if (!c.ok()) return c.status();
+    loaded->cloud = std::make_unique<GaussianCloud>(std::move(c).value());
+  }
+  GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *loaded->cloud));
+  s.gaussians = loaded->cloud->size();
+  s.bytes = file_size_or_zero(a.out);
+  if (measure) {
+    std::vector<const io::DatasetView*> test;
+    for (const io::DatasetView& v : loaded->data->dataset.views)
+      if (v.is_test) test.push_back(&v);
+    Expected<model::Background> background = model_background(s.source, "");
+    if (!background.ok()) return background.status();
+    platform::ThreadPool pool(a.threads);
+    Expected<GaussianCloud> back = io::read_gaussians(a.out);
+    if (!back.ok()) return back.status();
+    model::EvalOptions eo;
+    eo.psnr_only = true;
+    std::copy(background->rgb, background->rgb + 3, eo.render.background);
+    if (!test.empty()) {
+      Expected<model::EvalResult> me = model::evaluate_views(*loaded->cloud, test, eo, &pool);
+      if (!me.ok()) return me.status();
+      Expected<model::EvalResult> be = model::evaluate_views(*back, test, eo, &pool);
+      if (!be.ok()) return be.status();
+      s.model_eval = std::move(me).value();
+      s.baked_eval = std::move(be).value();
+      s.evaluated = true;
+    }
+  }
+  s.seconds = platform::now_seconds() - t0;
+  if (summary) *summary = std::move(s);
+  return Status::Ok();
+}
+
+}  // namespace
+
 Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
   if (a.out.empty()) return invalid_argument("--out: the file to write is required (its extension picks the format: " +
                                              std::string(io::supported_splat_extensions()) + ")");
@@ -18,25 +89,9 @@ Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
   if (!format.ok()) return Status(format.status().code(), "--out: " + format.status().message());
   if (a.sh_degree < 0 || a.sh_degree > 3) return invalid_argument("--sh-degree must be 0-3");
   if (a.distill_iterations < 0) return invalid_argument("--distill must be 0 or more");
-  if (!platform::file_exists(a.input)) return invalid_argument(a.input + " not found");
-  if (!is_model_input(a.input))
-    return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs) nor a model file (.hbgs, .hbgc)");
   const double t0 = platform::now_seconds();
-  if (is_splat_file(a.input) && (a.dataset.empty() || !a.evaluate) && !resolve_model_source(a.input, a.dataset, -1).ok()) {
-    // A conversion with no dataset to measure on.
-    if (absolute_path(a.out) == absolute_path(a.input)) return invalid_argument("--out " + a.out + " is the input file");
-    Expected<GaussianCloud> cloud = io::read_gaussians(a.input);
-    if (!cloud.ok()) return cloud.status();
-    GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *cloud));
-    ExportRunSummary s;
-    s.source.model_path = a.input;
-    s.format = *format;
-    s.gaussians = cloud->size();
-    s.bytes = file_size_or_zero(a.out);
-    s.seconds = platform::now_seconds() - t0;
-    if (summary) *summary = std::move(s);
-    return Status::Ok();
-  }
+  if (platform::file_exists(a.input) && is_splat_file(a.input)) return convert(a, *format, t0, summary);
+  GS_RETURN_IF_ERROR(check_bake_input(a.input));
   // The cameras of every view and the test views' images (the training images are not needed).
   Expected<ModelViews> loaded = load_model_views(a.input, a.dataset, a.max_width, "test");
   if (!loaded.ok()) return loaded.status();
@@ -46,23 +101,16 @@ Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
   if (absolute_path(a.out) == absolute_path(s.source.model_path)) return invalid_argument("--out " + a.out + " is the input model");
   Expected<model::Background> background = model_background(s.source, "");
   if (!background.ok()) return background.status();
-  std::vector<Camera> train;
   std::vector<const io::DatasetView*> test;
-  for (const io::DatasetView& v : loaded->data->dataset.views) {
+  for (const io::DatasetView& v : loaded->data->dataset.views)
     if (v.is_test) test.push_back(&v);
-    else train.push_back(v.camera);
-  }
-  if (train.empty()) return invalid_argument(s.source.dataset + ": no training views to bake over");
 
   platform::ThreadPool pool(a.threads);
   model::BakeOptions bo;
   bo.sh_degree = *format == io::SplatFormat::kAntimatterSplat ? 0 : a.sh_degree;  // .splat stores colour only
   bo.distill_iterations = a.distill_iterations;
   bo.seed = a.seed;
-  std::copy(background->rgb, background->rgb + 3, bo.background);
-  // A splat file is converted as it is (no baking); a model is baked over the training cameras.
-  Expected<GaussianCloud> cloud = loaded->cloud ? Expected<GaussianCloud>(*loaded->cloud)
-                                                : model::bake_model(loaded->model, train, bo, &pool, &s.bake);
+  Expected<GaussianCloud> cloud = bake_over_training_views(*loaded, *background, bo, &pool, &s.bake);
   if (!cloud.ok()) return cloud.status();
   GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *cloud));
   s.gaussians = cloud->size();
@@ -74,7 +122,7 @@ Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
     model::EvalOptions eo;
     eo.psnr_only = true;
     std::copy(background->rgb, background->rgb + 3, eo.render.background);
-    Expected<model::EvalResult> me = evaluate_loaded(*loaded, test, eo, &pool);
+    Expected<model::EvalResult> me = model::evaluate_views(loaded->model, test, eo, &pool);
     if (!me.ok()) return me.status();
     Expected<model::EvalResult> be = model::evaluate_views(*back, test, eo, &pool);
     if (!be.ok()) return be.status();

@@ -34,6 +34,7 @@
 #include "gs/jobs/pose_truth.h"
 #include "gs/jobs/register.h"
 #include "gs/jobs/render.h"
+#include "gs/jobs/report.h"
 #include "gs/jobs/run_folder.h"
 #include "gs/jobs/train.h"
 #include "gs/model/background.h"

@@ -16,6 +16,8 @@
 #include "gs/model/evaluate.h"
 #include "gs/status.h"
 
+namespace gs::platform { class ThreadPool; }
+
 namespace gs::jobs {
 
 struct ExportRunOptions {
@@ -42,5 +44,16 @@ struct ExportRunSummary {
 };
 
 Status export_run(const ExportRunOptions& options, ExportRunSummary* summary);
+
+// What the export job and the report page (gs/jobs/report.h) share:
+// Refuses an input that is not an anchor model to bake (missing, plain Gaussians already, neither
+// a run folder nor a model file), with a message naming it.
+Status check_bake_input(const std::string& input);
+// Bakes the loaded anchor model over its dataset's training cameras (model::bake_model) on
+// `background` (the run's training background); options.background is overwritten with it.
+// Errors: no training views, the bake's own.
+Expected<GaussianCloud> bake_over_training_views(const ModelViews& loaded, const model::Background& background,
+                                                 model::BakeOptions options, platform::ThreadPool* pool,
+                                                 model::BakeStats* stats);
 
 }  // namespace gs::jobs
