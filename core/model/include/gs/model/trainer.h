@@ -145,12 +145,12 @@ class Trainer {
 struct CompactModel;
 
 struct ModelRenderOptions {
-  float background[3] = {0, 0, 0};  // the colour behind the Gaussians (the model's training background)
   bool fixed_point_raster = false;  // RenderOptions::fixed_point: the int16 tile kernel (gs/simd/qsplat.h)
   // Non-null: the decoder MLPs run as int8 (qmlp_fwd, gs/model/quant_decoder.h) with this compact
   // model's weights and calibrated ranges; the model rendered must be its dequantize(). Kept alive
   // by the caller.
   const CompactModel* int8_mlp = nullptr;
+  float background[3] = {0, 0, 0};  // the colour behind the Gaussians (the model's training background)
 };
 
 class ModelRenderer {
