@@ -32,6 +32,34 @@ Expected<GaussianCloud> bake_over_training_views(const ModelViews& loaded, const
 
 namespace {
 
+// Test PSNR (8-bit) of the input (a model or plain Gaussians) and of the file just written, read back
+// as every reader sees it (so the format's quantisation counts).
+template <class Input>
+Status measure_written(const Input& input, const std::string& written, const std::vector<const io::DatasetView*>& test,
+                       const model::Background& background, platform::ThreadPool* pool, ExportRunSummary* s) {
+  if (test.empty()) return Status::Ok();
+  Expected<GaussianCloud> back = io::read_gaussians(written);
+  if (!back.ok()) return back.status();
+  model::EvalOptions eo;
+  eo.psnr_only = true;
+  std::copy(background.rgb, background.rgb + 3, eo.render.background);
+  Expected<model::EvalResult> me = model::evaluate_views(input, test, eo, pool);
+  if (!me.ok()) return me.status();
+  Expected<model::EvalResult> be = model::evaluate_views(*back, test, eo, pool);
+  if (!be.ok()) return be.status();
+  s->model_eval = std::move(me).value();
+  s->baked_eval = std::move(be).value();
+  s->evaluated = true;
+  return Status::Ok();
+}
+
+std::vector<const io::DatasetView*> test_views(const ModelViews& loaded) {
+  std::vector<const io::DatasetView*> test;
+  for (const io::DatasetView& v : loaded.data->dataset.views)
+    if (v.is_test) test.push_back(&v);
+  return test;
+}
+
 // A splat file to another format, as it is; measured when a dataset is known (given, or named by a
 // run.json beside the file) and evaluation is asked for.
 Status convert(const ExportRunOptions& a, io::SplatFormat format, double t0, ExportRunSummary* summary) {
@@ -40,7 +68,6 @@ Status convert(const ExportRunOptions& a, io::SplatFormat format, double t0, Exp
   s.format = format;
   s.source.model_path = a.input;
   const bool measure = a.evaluate && resolve_model_source(a.input, a.dataset, a.max_width).ok();
-  std::unique_ptr<GaussianCloud> cloud;
   Expected<ModelViews> loaded = measure ? load_model_views(a.input, a.dataset, a.max_width, "test") : Expected<ModelViews>(ModelViews{});
   if (!loaded.ok()) return loaded.status();
   if (measure) {
@@ -54,26 +81,10 @@ Status convert(const ExportRunOptions& a, io::SplatFormat format, double t0, Exp
   s.gaussians = loaded->cloud->size();
   s.bytes = file_size_or_zero(a.out);
   if (measure) {
-    std::vector<const io::DatasetView*> test;
-    for (const io::DatasetView& v : loaded->data->dataset.views)
-      if (v.is_test) test.push_back(&v);
     Expected<model::Background> background = model_background(s.source, "");
     if (!background.ok()) return background.status();
     platform::ThreadPool pool(a.threads);
-    Expected<GaussianCloud> back = io::read_gaussians(a.out);
-    if (!back.ok()) return back.status();
-    model::EvalOptions eo;
-    eo.psnr_only = true;
-    std::copy(background->rgb, background->rgb + 3, eo.render.background);
-    if (!test.empty()) {
-      Expected<model::EvalResult> me = model::evaluate_views(*loaded->cloud, test, eo, &pool);
-      if (!me.ok()) return me.status();
-      Expected<model::EvalResult> be = model::evaluate_views(*back, test, eo, &pool);
-      if (!be.ok()) return be.status();
-      s.model_eval = std::move(me).value();
-      s.baked_eval = std::move(be).value();
-      s.evaluated = true;
-    }
+    GS_RETURN_IF_ERROR(measure_written(*loaded->cloud, a.out, test_views(*loaded), *background, &pool, &s));
   }
   s.seconds = platform::now_seconds() - t0;
   if (summary) *summary = std::move(s);
@@ -101,10 +112,6 @@ Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
   if (absolute_path(a.out) == absolute_path(s.source.model_path)) return invalid_argument("--out " + a.out + " is the input model");
   Expected<model::Background> background = model_background(s.source, "");
   if (!background.ok()) return background.status();
-  std::vector<const io::DatasetView*> test;
-  for (const io::DatasetView& v : loaded->data->dataset.views)
-    if (v.is_test) test.push_back(&v);
-
   platform::ThreadPool pool(a.threads);
   model::BakeOptions bo;
   bo.sh_degree = *format == io::SplatFormat::kAntimatterSplat ? 0 : a.sh_degree;  // .splat stores colour only
@@ -115,21 +122,7 @@ Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
   GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *cloud));
   s.gaussians = cloud->size();
   s.bytes = file_size_or_zero(a.out);
-  if (a.evaluate && !test.empty()) {
-    // The Gaussians as every reader sees them: read back from the file just written.
-    Expected<GaussianCloud> back = io::read_gaussians(a.out);
-    if (!back.ok()) return back.status();
-    model::EvalOptions eo;
-    eo.psnr_only = true;
-    std::copy(background->rgb, background->rgb + 3, eo.render.background);
-    Expected<model::EvalResult> me = model::evaluate_views(loaded->model, test, eo, &pool);
-    if (!me.ok()) return me.status();
-    Expected<model::EvalResult> be = model::evaluate_views(*back, test, eo, &pool);
-    if (!be.ok()) return be.status();
-    s.model_eval = std::move(me).value();
-    s.baked_eval = std::move(be).value();
-    s.evaluated = true;
-  }
+  if (a.evaluate) GS_RETURN_IF_ERROR(measure_written(loaded->model, a.out, test_views(*loaded), *background, &pool, &s));
   s.seconds = platform::now_seconds() - t0;
   if (summary) *summary = std::move(s);
   return Status::Ok();

@@ -75,24 +75,13 @@ TEST_CASE("composite: without a mask the target is the box mean and with one cov
   CHECK(io::composite_rgb8(photo, io::Image8{}, bg).pixels == photo.pixels);
 }
 
-ModelConfig small_config() {
-  ModelConfig c;
-  c.k = 4;
-  c.feature_dim = 16;
-  c.hidden = 16;
-  c.image_features = ImageFeatureMode::kNone;
-  c.max_anchors = 400;
-  c.max_gaussians = 4000;
-  return c;
-}
-
 // Trains 400 iterations on the scene's views (densification off) with the given background and
 // evaluates every view on `eval_on` against the masked scene's photos composited on it.
 EvalResult train_and_evaluate(const test::TrainScene& train_on, const test::TrainScene& masked, const Background& bg,
                               const float eval_on[3]) {
   std::vector<const Camera*> cams;
   for (const auto& v : train_on.views) cams.push_back(&v.camera);
-  Expected<HybridModel> m = create_model(small_config(), train_on.points.data(), train_on.points.size() / 3, cameras_extent(cams), 1);
+  Expected<HybridModel> m = create_model(test::small_scene_model_config(), train_on.points.data(), train_on.points.size() / 3, cameras_extent(cams), 1);
   REQUIRE(m.ok());
   TrainOptions o;
   o.iterations = 400;

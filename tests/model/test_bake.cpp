@@ -32,13 +32,7 @@ const test::TrainScene& scene() {
 // A model trained 300 iterations on the scene (no densification), made once.
 const HybridModel& trained() {
   static const HybridModel m = [] {
-    ModelConfig c;
-    c.k = 4;
-    c.feature_dim = 16;
-    c.hidden = 16;
-    c.image_features = ImageFeatureMode::kNone;
-    c.max_anchors = 400;
-    c.max_gaussians = 4000;
+    const ModelConfig c = test::small_scene_model_config();
     std::vector<const Camera*> cams;
     for (const auto& v : scene().views) cams.push_back(&v.camera);
     Expected<HybridModel> m0 = create_model(c, scene().points.data(), scene().points.size() / 3, cameras_extent(cams), 1);

@@ -17,6 +17,7 @@
 
 #include "gs/io/colmap.h"
 #include "gs/io/image.h"
+#include "gs/model/hybrid_model.h"
 #include "gs/render.h"
 #include "support/model_fixtures.h"
 
@@ -92,5 +93,18 @@ struct TrainScene {
       for (int c = 0; c < 3; ++c) points.push_back(means[3 * i + size_t(c)] + 0.01f * nrm(rng));
   }
 };
+
+// A small model for this scene (4 offsets, 16-wide features and MLPs, no image features, at most
+// 400 anchors): quick to train in tests.
+inline model::ModelConfig small_scene_model_config() {
+  model::ModelConfig c;
+  c.k = 4;
+  c.feature_dim = 16;
+  c.hidden = 16;
+  c.image_features = model::ImageFeatureMode::kNone;
+  c.max_anchors = 400;
+  c.max_gaussians = 4000;
+  return c;
+}
 
 }  // namespace gs::test

@@ -79,6 +79,16 @@ struct Registrar::Impl {
   double extent = 1;
 
 
+  // What both kinds of scene share at creation.
+  void setup(const RegisterOptions& options, platform::ThreadPool* p, const simd::KernelTable* k, int w, int h, float e) {
+    opt = options;
+    pool = p;
+    kernels = k ? k : &simd::best_kernel_table();
+    max_w = w;
+    max_h = h;
+    extent = e;
+  }
+
   void allocate_images() {
     const size_t px = size_t(max_w) * size_t(max_h) * 3, npx = size_t(max_w) * size_t(max_h);
     for (auto* v : {&target, &rgb, &v_rgb, &key_rgb, &lvl_rgb}) v->assign(px, 0.0f);
@@ -606,12 +616,7 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const model::HybridModel&
   std::unique_ptr<Registrar> r(new Registrar());
   Impl& d = *r->impl_;
   d.model = &model;
-  d.opt = options;
-  d.pool = pool;
-  d.kernels = kernels ? kernels : &simd::best_kernel_table();
-  d.max_w = max_width;
-  d.max_h = max_height;
-  d.extent = model.scene_extent;
+  d.setup(options, pool, kernels, max_width, max_height, model.scene_extent);
   const size_t cap = std::max(model.anchor_count, plan_anchor_rows);
   d.planned_rows = cap;
   Expected<RenderCapacity> rc = model::detail::plan_model_pipeline(model, cap, max_width, max_height, 1, 1, pool, d.kernels,
@@ -632,12 +637,7 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const GaussianCloud& clou
   std::unique_ptr<Registrar> r(new Registrar());
   Impl& d = *r->impl_;
   d.cloud = &cloud;
-  d.opt = options;
-  d.pool = pool;
-  d.kernels = kernels ? kernels : &simd::best_kernel_table();
-  d.max_w = max_width;
-  d.max_h = max_height;
-  d.extent = scene_extent;
+  d.setup(options, pool, kernels, max_width, max_height, scene_extent);
   const RenderCapacity rc = model::detail::cloud_render_capacity(cloud.size(), max_width, max_height);
   GS_RETURN_IF_ERROR(d.renderer.init(rc, pool, d.kernels));
   d.cloud_decoder.reserve(cloud.size(), cloud.sh_degree);
