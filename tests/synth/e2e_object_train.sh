@@ -20,11 +20,15 @@ python3 - "$work" <<'PY'
 import json, sys
 work = sys.argv[1]
 ok = True
+psnr = {}
 for kind in ("transparent", "cluttered"):
     r = json.load(open(f"{work}/run_{kind}/results.json"))["ours_600"]
     print(f"{kind}: test PSNR {r['PSNR']:.2f} dB, inside the mask {r['PSNR_masked']:.2f} dB, alpha MAE {r['alpha_MAE']:.4f}, "
           f"alpha IoU {r['alpha_IoU']:.4f}, background {r['background']}")
-    # Limits from measured runs with margin (see the test's CMake comment).
-    ok = ok and r["background"] == "white" and r["PSNR"] > LIMIT_PSNR and r["alpha_IoU"] > 0.9
+    # Limits from a measured run with margin: 28.86 and 28.54 dB, alpha IoU 0.986 and 0.987 (the
+    # masked clutter costs 0.3 dB). The full-size figures are 30 dB and more (docs/MODEL.md).
+    ok = ok and r["background"] == "white" and r["PSNR"] > 26.0 and r["alpha_IoU"] > 0.95
+    psnr[kind] = r["PSNR"]
+ok = ok and psnr["cluttered"] > psnr["transparent"] - 1.5
 sys.exit(0 if ok else 1)
 PY
