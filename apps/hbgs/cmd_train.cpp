@@ -68,6 +68,10 @@ class ProgressPrinter {
   void iteration(const gs::model::IterationStats& s, int total) {
     if (s.poses_registered >= 0) line("it " + std::to_string(s.iteration) + ": registration pass moved " +
                                       std::to_string(s.poses_registered) + " poses");
+    if (s.views_released > 0)
+      line("it " + std::to_string(s.iteration) + ": " + std::to_string(s.views_released) +
+           " held-back views registered against the model and joined training; " + std::to_string(s.views_held_back) +
+           " still held back");
     ema_loss_ = have_ ? 0.6 * ema_loss_ + 0.4 * s.step.loss : s.step.loss;
     ema_psnr_ = have_ ? 0.6 * ema_psnr_ + 0.4 * s.psnr : s.psnr;
     have_ = true;

@@ -67,6 +67,8 @@ Status init_poses_by_sfm(const std::vector<const io::Image8*>& images, const std
     rec_poses.emplace_back(it->second, p);
   }
   rep.registered = int(rec_poses.size());
+  rep.registered_views.assign(cams->size(), 0);
+  for (const auto& rp : rec_poses) rep.registered_views[rp.first] = 1;
   rep.colmap_points = int(model->points.size());
   pose::Sim3 frame;
   if (!pose::fit_sim3(c_rec.data(), c_given.data(), nullptr, rec_poses.size(), &frame))

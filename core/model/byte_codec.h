@@ -19,6 +19,7 @@ namespace gs::model::detail {
 class ByteWriter {
  public:
   std::vector<uint8_t> bytes;
+  void u8(uint8_t v) { bytes.push_back(v); }
   void u32(uint32_t v) { io::detail::append_u32(bytes, v); }
   void u64(uint64_t v) { io::detail::append_u64(bytes, v); }
   void i32(int32_t v) { u32(uint32_t(v)); }
@@ -52,6 +53,7 @@ class ByteReader {
     }
     return true;
   }
+  uint8_t u8(const char* what) { return need(1, what) ? uint8_t(take(1)) : 0; }
   uint32_t u32(const char* what) { return need(4, what) ? uint32_t(take(4)) : 0; }
   uint64_t u64(const char* what) { return need(8, what) ? take(8) : 0; }
   int32_t i32(const char* what) { return int32_t(u32(what)); }

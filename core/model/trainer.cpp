@@ -30,7 +30,7 @@ namespace gs::model {
 namespace {
 
 constexpr char kCheckpointMagic[8] = {'H', 'B', 'G', 'S', 'C', 'K', 'P', 'T'};
-constexpr uint32_t kCheckpointVersion = 2;  // 2: training poses and their Adam state
+constexpr uint32_t kCheckpointVersion = 3;  // 2: training poses and their Adam state; 3: held-back views
 // Tile pairs planned per Gaussian of capacity where the renderer is used through
 // FloatBackend::render_params (it re-plans with 1.5x headroom when a view needs more): training
 // snowmiku_plush at 393 px used at most 1.5 (130k pairs for 88k Gaussians of capacity); 8 cost
@@ -100,6 +100,7 @@ struct Trainer::Impl {
   detail::SplitMix64 rng;
   std::vector<int32_t> view_order;
   size_t view_pos = 0;
+  std::vector<uint8_t> held;  // [views] 1: held back (not trained on) until registered
   // Densification statistics (capacity rows).
   std::vector<float> opacity_accum;   // [cap]
   std::vector<int32_t> anchor_seen;   // [cap]
@@ -155,7 +156,9 @@ struct Trainer::Impl {
     pruned.resize(c, 0);
     uint64_t bytes = Renderer::plan_bytes(*rc);
     registrar.reset();
-    if (options.pose_register_every > 0) {
+    // A run that may hold views back keeps its registrar even once none is held (a resumed run
+    // learns which views are held from its checkpoint, after this plan).
+    if (options.pose_register_every > 0 || options.held_back_register_every > 0) {
       pose::RegisterOptions ro;
       ro.max_iterations_per_level = 10;
       for (int ch = 0; ch < 3; ++ch) ro.background[ch] = opt.background.rgb[ch];
@@ -257,14 +260,39 @@ struct Trainer::Impl {
     return g;
   }
 
+  // The next training view, skipping held-back ones (create() refuses a run with every view held).
   int next_view() {
-    if (view_pos >= view_order.size()) {  // new epoch: Fisher-Yates with the run's generator
-      for (size_t i = 0; i < view_order.size(); ++i) view_order[i] = int32_t(i);
-      for (size_t i = view_order.size(); i > 1; --i) std::swap(view_order[i - 1], view_order[rng.next() % i]);
-      view_pos = 0;
+    for (;;) {
+      if (view_pos >= view_order.size()) {  // new epoch: Fisher-Yates with the run's generator
+        for (size_t i = 0; i < view_order.size(); ++i) view_order[i] = int32_t(i);
+        for (size_t i = view_order.size(); i > 1; --i) std::swap(view_order[i - 1], view_order[rng.next() % i]);
+        view_pos = 0;
+      }
+      const int v = view_order[view_pos++];
+      if (!held[size_t(v)]) return v;
     }
-    return view_order[view_pos++];
   }
+
+  // Registers every held-back view against the current model; a converged one gets that pose
+  // (Adam state reset) and joins training. Returns how many joined.
+  Status register_held(int it, int* released) {
+    *released = 0;
+    registrar->mutable_options().finest_downscale = std::max(2, downscale_at(it));
+    for (size_t v = 0; v < views.size(); ++v) {
+      if (!held[v]) continue;
+      pose::RegisterResult r;
+      GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
+      if (!r.converged()) continue;
+      view_cameras[v].pose = r.pose;
+      std::fill(pose_m.begin() + std::ptrdiff_t(6 * v), pose_m.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
+      std::fill(pose_v.begin() + std::ptrdiff_t(6 * v), pose_v.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
+      pose_steps[v] = 0;
+      held[v] = 0;
+      ++*released;
+    }
+    return Status::Ok();
+  }
+  int held_count() const { return int(std::count(held.begin(), held.end(), uint8_t(1))); }
 
   // The photo of view v as the model should render it (composited when the view has a mask).
   const io::Image8& photo(size_t v) const { return composited[v].empty() ? views[v]->image : composited[v]; }
@@ -500,6 +528,14 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
       options.update_hierarchy_factor < 1 || options.update_init_factor < 1)
     return invalid_argument("trainer: iteration counts and densification intervals must be positive");
   if (options.max_nonfinite_in_a_row < 1) return invalid_argument("trainer: max_nonfinite_in_a_row must be at least 1");
+  if (!options.held_back_views.empty()) {
+    if (options.held_back_views.size() != train_views.size())
+      return invalid_argument("trainer: held_back_views has " + std::to_string(options.held_back_views.size()) + " entries for " +
+                              std::to_string(train_views.size()) + " training views");
+    if (std::find(options.held_back_views.begin(), options.held_back_views.end(), uint8_t(0)) == options.held_back_views.end())
+      return invalid_argument("trainer: every training view is held back; nothing would train");
+    if (options.held_back_register_every < 0) return invalid_argument("trainer: held_back_register_every must not be negative");
+  }
   if (options.coarse_levels < 0 || options.coarse_levels > 4 || !(options.coarse_fraction >= 0 && options.coarse_fraction <= 1))
     return invalid_argument("trainer: coarse_levels must be 0-4 and coarse_fraction in [0, 1]");
   if (!(options.lr_pose_rotation_init >= 0) || !(options.lr_pose_rotation_final > 0) || !(options.lr_pose_translation_init >= 0) ||
@@ -542,6 +578,8 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   d.rng.state = options.seed * 0x9E3779B97F4A7C15ull + 7;
   d.view_order.assign(train_views.size(), 0);
   d.view_pos = d.view_order.size();  // first call shuffles
+  d.held = options.held_back_views.empty() ? std::vector<uint8_t>(train_views.size(), 0) : options.held_back_views;
+  for (uint8_t& h : d.held) h = h ? 1 : 0;
   GS_RETURN_IF_ERROR(d.plan(options));
   if (d.paper()) d.refresh_image_features();
   return t;
@@ -597,9 +635,15 @@ Status Trainer::step(IterationStats* stats) {
   }
   bool refresh = d.paper() && d.opt.image_feature_refresh > 0 && it % d.opt.image_feature_refresh == 0;
   int moved = -1;
-  if (d.registrar && it % d.opt.pose_register_every == 0 && it <= d.opt.pose_register_until) {
+  if (d.registrar && d.opt.pose_register_every > 0 && it % d.opt.pose_register_every == 0 && it <= d.opt.pose_register_until) {
     GS_RETURN_IF_ERROR(d.register_all(it, &moved));
     refresh = refresh || (d.paper() && moved > 0);
+  }
+  int released = -1;
+  if (d.registrar && d.opt.held_back_register_every > 0 && it % d.opt.held_back_register_every == 0 &&
+      it >= d.opt.held_back_register_from && it <= d.opt.held_back_register_until && d.held_count() > 0) {
+    GS_RETURN_IF_ERROR(d.register_held(it, &released));
+    refresh = refresh || (d.paper() && released > 0);
   }
   if (refresh) d.refresh_image_features();
   d.iteration = it;
@@ -609,6 +653,8 @@ Status Trainer::step(IterationStats* stats) {
     stats->step = res;
     stats->downscale = scale;
     stats->poses_registered = moved;
+    stats->views_released = released;
+    stats->views_held_back = d.held_count();
     const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height) * 3;
     double se = 0;
     for (size_t i = 0; i < n; ++i) {
@@ -628,6 +674,7 @@ Status Trainer::step(IterationStats* stats) {
 
 int Trainer::iteration() const { return impl_->iteration; }
 const std::vector<Camera>& Trainer::cameras() const { return impl_->view_cameras; }
+const std::vector<uint8_t>& Trainer::held_back() const { return impl_->held; }
 int Trainer::downscale_at(int iteration) const { return impl_->downscale_at(iteration); }
 const HybridModel& Trainer::model() const { return impl_->model; }
 const TrainOptions& Trainer::options() const { return impl_->opt; }
@@ -690,6 +737,7 @@ Status Trainer::save_checkpoint(const std::string& path) const {
       w.f64(d.pose_v[6 * v + size_t(i)]);
     }
   }
+  for (uint8_t h : d.held) w.u8(h);
   w.u64(detail::fnv1a64(w.bytes.data(), w.bytes.size()));
   return platform::write_file_atomic(path, w.bytes.data(), w.bytes.size());
 }
@@ -705,8 +753,8 @@ Status Trainer::load_checkpoint(const std::string& path) {
   if (std::memcmp(magic, kCheckpointMagic, 8) != 0) return parse_error(path + ": not an hbgs checkpoint");
   const uint32_t version = r.u32("the format version");
   if (!r.status().ok()) return r.status();
-  if (version != kCheckpointVersion)
-    return unsupported(path + ": checkpoint format version " + std::to_string(version) + ", this hbgs reads version " +
+  if (version != kCheckpointVersion && version != 2)
+    return unsupported(path + ": checkpoint format version " + std::to_string(version) + ", this hbgs reads versions 2 and " +
                        std::to_string(kCheckpointVersion) + (version == 1 ? " (version 1 predates pose optimisation; restart the run)" : ""));
   if (bytes.size() < 8 || detail::fnv1a64(bytes.data(), bytes.size() - 8) != io::detail::load_u64(bytes.data() + bytes.size() - 8))
     return parse_error(path + ": checksum mismatch (the checkpoint is truncated or corrupt)");
@@ -771,7 +819,15 @@ Status Trainer::load_checkpoint(const std::string& path) {
       d.pose_v[6 * v + size_t(i)] = r.f64("pose moments");
     }
   }
+  std::vector<uint8_t> held(d.views.size(), 0);  // version 2 predates held-back views: none
+  if (version >= 3)
+    for (uint8_t& h : held) {
+      h = r.u8("held-back views");
+      if (r.status().ok() && h > 1) return parse_error(path + ": bad held-back flag");
+    }
   if (!r.status().ok()) return r.status();
+  if (std::find(held.begin(), held.end(), uint8_t(0)) == held.end()) return parse_error(path + ": every view is held back");
+  d.held = held;
   d.iteration = iteration;
   d.rng.state = rng_state;
   d.view_pos = size_t(view_pos);

@@ -312,6 +312,7 @@ struct TrainSession::Impl {
   std::vector<std::string> train_names;
   pose::PoseErrors input_errors;
   nlohmann::json sfm_init, point_alignment;  // stage reports for results.json
+  std::vector<uint8_t> sfm_registered;       // [training views] 1 where SfM registered the view
   std::unique_ptr<platform::ThreadPool> pool;
   const simd::KernelTable* kernels = nullptr;
   std::unique_ptr<model::Trainer> trainer;
@@ -346,8 +347,13 @@ struct TrainSession::Impl {
         !st.ok())
       return Status(st.code(), "--pose-init sfm: " + st.message());
     set_train_poses(cams);
+    sfm_registered = rep.registered_views;
+    nlohmann::json unregistered = nlohmann::json::array();
+    for (size_t i = 0; i < sfm_registered.size(); ++i)
+      if (!sfm_registered[i]) unregistered.push_back(train_names[i]);
     const pose::PoseErrors e = errors(poses_of(cams), true);
     sfm_init = {{"seconds", rep.seconds},           {"registered", rep.registered},
+                {"not_registered", unregistered},
                 {"images", sfm_images->folder.empty() ? std::string("training images") : sfm_images->folder},
                 {"image_width", cams[0].intr.width}, {"image_height", cams[0].intr.height},
                 {"views", rep.views},               {"colmap_points", rep.colmap_points},
@@ -448,7 +454,22 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
   for (const io::DatasetView* v : d.train_views) input.push_back(v->camera.pose);
   d.input_errors = d.errors(input, true);
   d.pool = std::make_unique<platform::ThreadPool>(options.threads);
-  if (options.optimize_poses && options.pose_init == "sfm" && !options.resume) GS_RETURN_IF_ERROR(d.init_by_sfm(work_dir, say));
+  if (options.optimize_poses && options.pose_init == "sfm") {
+    // Views SfM could not register keep their given pose, which may be far off: they are held back
+    // from training and registered against the model every 5 % of the run from 20 % to 60 % of it
+    // (earlier, the model is too rough to register against), each joining once it converges (on a
+    // resume the checkpoint says which are still held).
+    resolved->train.held_back_register_every = std::max(1, options.iterations / 20);
+    resolved->train.held_back_register_from = options.iterations / 5;
+    resolved->train.held_back_register_until = options.iterations * 3 / 5;
+    if (!options.resume) {
+      GS_RETURN_IF_ERROR(d.init_by_sfm(work_dir, say));
+      if (!d.sfm_registered.empty() && std::find(d.sfm_registered.begin(), d.sfm_registered.end(), uint8_t(0)) != d.sfm_registered.end()) {
+        resolved->train.held_back_views.assign(d.sfm_registered.size(), 0);
+        for (size_t i = 0; i < d.sfm_registered.size(); ++i) resolved->train.held_back_views[i] = d.sfm_registered[i] ? 0 : 1;
+      }
+    }
+  }
   // Point alignment matches the images to the points' colours: random points (a NeRF-style dataset
   // without a point cloud) are grey and lie nowhere in particular, so they would pull the poses away.
   const bool points_meaningful = d.dataset.points_source != io::PointsSource::kRandom;
@@ -578,6 +599,15 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
   if (!lpips.ok()) return lpips.status();
   if (!lpips_note.empty()) note(lpips_note);
 
+  // Views held back since SfM could not register them: which are still held (never trained on).
+  auto held_back_json = [&] {
+    nlohmann::json still = nlohmann::json::array();
+    const std::vector<uint8_t>& held = trainer.held_back();
+    for (size_t i = 0; i < held.size(); ++i)
+      if (held[i]) still.push_back(d.train_names[i]);
+    return nlohmann::json{{"at_start", std::count(d.sfm_registered.begin(), d.sfm_registered.end(), uint8_t(0))},
+                          {"still_held", still}};
+  };
   auto pose_json = [&] {
     const std::vector<Pose> now = poses_of(trainer.cameras());
     return nlohmann::json{{"noise", a.pose_noise},
@@ -588,7 +618,8 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
                           {"sfm_init", d.sfm_init},
                           {"point_alignment", d.point_alignment},
                           {"train_final", pose_errors_json(d.errors(now, true), true, d.train_names)},
-                          {"train_final_unaligned", pose_errors_json(d.errors(now, false), false)}};
+                          {"train_final_unaligned", pose_errors_json(d.errors(now, false), false)},
+                          {"held_back", held_back_json()}};
   };
 
   // 3. Start: clear a replaced run, record the options.

@@ -30,6 +30,7 @@ struct SfmPoseInitOptions {
 
 struct SfmPoseInitReport {
   int views = 0, registered = 0;
+  std::vector<uint8_t> registered_views;  // [views] 1 where COLMAP registered the view (its pose was replaced)
   int colmap_points = 0;
   double centre_fit_rms = 0;   // RMS of the centre fit residuals, dataset units
   double icp_median_before = 0, icp_median_after = 0;  // median NN distance of COLMAP's points, dataset units

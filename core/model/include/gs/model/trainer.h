@@ -68,6 +68,13 @@ struct TrainOptions {
   // kept when it fits its image better; Adam moments of a moved pose are reset. 0: never.
   int pose_register_every = 0;
   int pose_register_until = 0;
+  // Views held back (1 per training view; empty: none): not trained on until a registration against
+  // the current model (every held_back_register_every iterations from held_back_register_from up to
+  // held_back_register_until: a model too young to register against gives confident wrong poses)
+  // gives them a converged pose. For views whose given pose is far off, e.g. those structure from
+  // motion could not register: trained on, they would blur the model where they look.
+  std::vector<uint8_t> held_back_views;
+  int held_back_register_every = 0, held_back_register_from = 0, held_back_register_until = 0;
   // Coarse to fine: the first coarse_fraction of the iterations render and compare at reduced
   // resolution, coarse_levels halvings spread evenly over it (2: 1/4 then 1/2), then full resolution.
   int coarse_levels = 0;
@@ -91,6 +98,8 @@ struct IterationStats {
   bool adjusted = false;   // anchors were grown / pruned this iteration
   int downscale = 1;       // resolution divisor of this iteration (coarse to fine)
   int poses_registered = -1;  // poses moved by a registration pass this iteration (-1: no pass)
+  int views_released = -1;    // held-back views registered and released this iteration (-1: no attempt)
+  int views_held_back = 0;    // views still held back after this iteration
   bool skipped_nonfinite = false;  // the loss or a gradient was not finite: nothing was updated
   int nonfinite_steps = 0;         // steps skipped so far by this trainer (since create or load)
 };
@@ -113,6 +122,8 @@ class Trainer {
   const TrainOptions& options() const;
   // Current camera of every training view (the input poses, refined when optimize_poses is on).
   const std::vector<Camera>& cameras() const;
+  // 1 for each training view still held back (TrainOptions::held_back_views).
+  const std::vector<uint8_t>& held_back() const;
   // Resolution divisor used at a 1-based iteration (coarse to fine).
   int downscale_at(int iteration) const;
 
