@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 #include <type_traits>
 #include <xsimd/xsimd.hpp>
 
@@ -81,35 +82,24 @@ inline xsimd::batch<int16_t, A> q_alpha(const xsimd::batch<int16_t, A>& y, const
 }
 
 // Tile rows per register: two on AVX-512 (32 int16 lanes), else one (16 lanes) or half of one (8).
+// With two, the rows are interleaved: lane 2 i + h is column i of the register's row h, so that a
+// pair of per-row values stored next to each other is one 32-bit broadcast.
 template <class A>
 constexpr int q_rows_per_register() {
   return int(xsimd::batch<int16_t, A>::size) >= 2 * kTileSize ? int(xsimd::batch<int16_t, A>::size) / kTileSize : 1;
 }
 
-// A batch of two tile rows (R = 2): lanes [0, 16) hold lo, lanes [16, 32) hold hi.
+// Two-row registers (AVX-512 only). Interleaved step rows: lane 2 i = lo[i], lane 2 i + 1 = hi[i].
 template <class A>
-inline xsimd::batch<int16_t, A> q_rows_broadcast(int16_t lo, int16_t hi) {
+inline xsimd::batch<int16_t, A> q_rows_interleave(const int16_t* lo, const int16_t* hi) {
   using B = xsimd::batch<int16_t, A>;
 #if defined(__AVX512BW__)
   if constexpr (B::size == 32) {
-    return B(_mm512_mask_set1_epi16(_mm512_set1_epi16(lo), __mmask32(0xFFFF0000u), hi));
-  } else
-#endif
-  {
-    static_assert(sizeof(A) == 0, "qraster: two rows per register only on AVX-512");
-    (void)hi;
-    return B(lo);
-  }
-}
-// 16 int16 from lo then 16 from hi (unaligned), as one two-row batch.
-template <class A>
-inline xsimd::batch<int16_t, A> q_rows_load(const int16_t* lo, const int16_t* hi) {
-  using B = xsimd::batch<int16_t, A>;
-#if defined(__AVX512BW__)
-  if constexpr (B::size == 32) {
-    const __m256i l = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(lo));
-    const __m256i h = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(hi));
-    return B(_mm512_inserti64x4(_mm512_castsi256_si512(l), h, 1));
+    const __m512i l = _mm512_castsi256_si512(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(lo)));
+    const __m512i h = _mm512_castsi256_si512(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(hi)));
+    const __m512i idx = _mm512_set_epi16(47, 15, 46, 14, 45, 13, 44, 12, 43, 11, 42, 10, 41, 9, 40, 8, 39, 7, 38, 6, 37, 5,
+                                         36, 4, 35, 3, 34, 2, 33, 1, 32, 0);
+    return B(_mm512_permutex2var_epi16(l, idx, h));
   } else
 #endif
   {
@@ -118,18 +108,46 @@ inline xsimd::batch<int16_t, A> q_rows_load(const int16_t* lo, const int16_t* hi
     return B::load_unaligned(lo);
   }
 }
-// Lanes of the rows set in `rows` (bit h: the register's row h).
+// Lane bits of the rows set in `rows` (bit h: the register's row h), interleaved.
+constexpr uint32_t q_rows_lane_bits(uint32_t rows) {
+  return (rows & 1 ? 0x55555555u : 0u) | (rows & 2 ? 0xAAAAAAAAu : 0u);
+}
 template <class A>
-inline xsimd::batch_bool<int16_t, A> q_rows_mask(uint32_t rows) {
+inline xsimd::batch_bool<int16_t, A> q_rows_mask(uint32_t lane_bits) {
   using M = xsimd::batch_bool<int16_t, A>;
 #if defined(__AVX512BW__)
   if constexpr (xsimd::batch<int16_t, A>::size == 32) {
-    return M(typename M::register_type((rows & 1 ? 0x0000FFFFu : 0u) | (rows & 2 ? 0xFFFF0000u : 0u)));
+    return M(typename M::register_type(lane_bits));
   } else
 #endif
   {
     static_assert(sizeof(A) == 0, "qraster: two rows per register only on AVX-512");
-    return M(rows != 0);
+    return M(lane_bits != 0);
+  }
+}
+// int64 lanes (already in int16 range) to int16, stored (AVX-512 vpmovqw).
+template <class A>
+inline void q_store_narrow16(const xsimd::batch<int64_t, A>& v, int16_t* out) {
+#if defined(__AVX512BW__)
+  if constexpr (xsimd::batch<int64_t, A>::size == 8) {
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out), _mm512_cvtepi64_epi16(v));
+  } else
+#endif
+  {
+    static_assert(sizeof(A) == 0, "qraster: vector row setup only on AVX-512");
+    (void)out;
+  }
+}
+template <class A>
+inline uint32_t q_mask_bits(const xsimd::batch_bool<int64_t, A>& m) {
+#if defined(__AVX512BW__)
+  if constexpr (xsimd::batch<int64_t, A>::size == 8) {
+    return uint32_t(__mmask8(m));
+  } else
+#endif
+  {
+    static_assert(sizeof(A) == 0, "qraster: vector row setup only on AVX-512");
+    return 0;
   }
 }
 
@@ -140,23 +158,33 @@ struct QRasterKernels {
   using B32 = xsimd::batch<int32_t, Arch>;
   static constexpr int L = int(B::size);
   static constexpr int R = q_rows_per_register<Arch>();  // tile rows per register (1 or 2)
-  static constexpr int kGroups = kTileSize / R;             // register rows of a tile
-  static constexpr int kChunk = 128;  // splats per chunk (bucket entries index it with uint8_t)
+  static constexpr int kGroups = kTileSize / R;             // registers rows of a tile
+  static constexpr int kChunk = 128;  // splats per chunk
   static_assert(kTileSize % L == 0 || L == R * kTileSize, "a register holds part of a tile row or whole rows");
   static constexpr int kPixels = kTileSize * kTileSize;
+  // The row values of a splat in int64 lanes where the ISA has int64 multiply, shift and min/max
+  // (AVX-512); a scalar loop elsewhere.
+  static constexpr bool kVectorRows = R == 2;
 
-  // What the blend loop reads of one splat. The per-splat constants are stored twice in an int32
-  // so that broadcasting them is a 32-bit broadcast load (no shuffle).
+  // Index of pixel (ly, lx) in the tile's state arrays: row-major, or row pairs interleaved (R = 2).
+  static constexpr int state_index(int ly, int lx) {
+    return R == 2 ? (ly / 2) * 2 * kTileSize + 2 * lx + (ly & 1) : ly * kTileSize + lx;
+  }
+
+  // What the blend loop reads of one splat: its column-step table, the row values of q_splat_row
+  // for each row of its support box (v at the nearest column j, w^2, and 15 - j, the step-table
+  // offset that aligns column 0), and its constants, each stored twice in an int32 so that
+  // broadcasting it is a 32-bit broadcast load.
   struct ChunkSplat {
     alignas(64) int16_t step[32];  // step[d + 15]: q_column_step over d columns, d in [-15, 15]; step[31] = 0
+    alignas(4) int16_t v_j[kTileSize], y_w[kTileSize], off[kTileSize];
     int32_t ylim2, opacity2, rgb2[3], depth2, index2;  // ylim, opacity, colour, depth, chunk index + 1
   };
-  // One splat on one register's rows (R of them), in the bucket of that register row: the row
-  // values of q_splat_row and the step-table offset 15 - j that aligns column 0 with it.
+  // A splat in the bucket of a register row: its index in the chunk, and (R = 2) the lanes of the
+  // register's rows it reaches.
   struct Entry {
-    int16_t v_j[R], y_w[R], off[R];
-    uint8_t splat;  // index in the chunk
-    uint8_t rows;   // bit h: row h of the register is reached (R = 2; always 1 for R = 1)
+    uint32_t lanes;
+    uint32_t splat;
   };
 
   static void fwd(const QRasterParams* p, int32_t tile_x, int32_t tile_y, const QSplat* splats, int32_t count,
@@ -167,12 +195,17 @@ struct QRasterKernels {
 
   static int32_t twice(int32_t v) { return int32_t(uint32_t(uint16_t(v)) * 0x10001u); }
   static B broadcast2(int32_t v2) { return xsimd::bitwise_cast<B>(B32(v2)); }
+  static int32_t pair(const int16_t* v) {  // v[0], v[1] as one int32 (for a 32-bit broadcast)
+    int32_t x;
+    std::memcpy(&x, v, sizeof(x));
+    return x;
+  }
 
-  // Chunk setup of one splat: its constants, its column-step table and the row values of every
-  // row of its support box, appended to the buckets of the registers that hold those rows. The row
-  // values are q_splat_row's, stepped row to row by exact int64 increments (dy falls by 256 per row).
-  static void add_splat(const QSplat& s, int32_t k, int32_t x0, int32_t y0, int32_t by0, int32_t by1, ChunkSplat* c,
-                        Entry (*buckets)[kChunk], int32_t* bucket_count, int32_t nb) {
+  // Chunk setup of one splat: its constants, column-step table and row values; returns the rows
+  // (bit ly) that reach y <= ylim somewhere. The row values are q_splat_row's, stepped row to row
+  // by exact int64 increments (dy falls by 256 per row).
+  static uint32_t setup_splat(const QSplat& s, int32_t k, int32_t x0, int32_t y0, int32_t by0, int32_t by1,
+                              ChunkSplat* c) {
     // q_column_step(s, d) = sat16((d s + 2^10) >> 11): |d s| <= 15 2^25 fits int32.
     for (int d = 0; d < 32; ++d) {
       const int32_t v = ((d - 15) * s.s + 1024) >> 11;
@@ -185,37 +218,49 @@ struct QRasterKernels {
     c->depth2 = twice(s.depth);
     c->index2 = twice(k + 1);
 
-    const int64_t dy0 = int64_t(s.my) - (int64_t(y0 + by0) * 256 + 128);
-    int64_t r_dy = int64_t(s.r) * dy0, kappa_dy = int64_t(s.kappa) * dy0;
-    const int64_t r_step = int64_t(s.r) * 256, kappa_step = int64_t(s.kappa) * 256;
     const int64_t col0 = int64_t(x0) * 256 + 128;
-    int16_t v_j[kTileSize], y_w[kTileSize], off[kTileSize];
-    uint32_t ok = 0;  // bit ly: row ly reaches y <= ylim somewhere
-    for (int32_t ly = by0; ly <= by1; ++ly, r_dy -= r_step, kappa_dy -= kappa_step) {
-      const int16_t w = q_sat16(q_round_shift(r_dy, 19));
-      const int16_t yw = gs::simd::q_mulhrs(w, w);
-      const int64_t rel = int64_t(s.mx) + q_floor_shift(kappa_dy, 16) - col0;
-      int64_t j = q_floor_shift(rel + 128, 8);
-      j = j < 0 ? 0 : (j > kTileSize - 1 ? kTileSize - 1 : j);
-      v_j[ly] = q_sat16(q_round_shift(int64_t(s.s) * (rel - j * 256), 19));
-      y_w[ly] = yw;
-      off[ly] = int16_t(15 - j);
-      ok |= uint32_t(yw <= s.ylim) << ly;
-    }
-    for (int32_t g = by0 / R; g <= by1 / R; ++g) {
-      const uint32_t rows = (ok >> (g * R)) & ((1u << R) - 1);
-      if (!rows) continue;
-      Entry& e = buckets[g][bucket_count[g]++];
-      for (int h = 0; h < R; ++h) {
-        const int32_t ly = g * R + h;
-        const bool in = (rows >> h) & 1;
-        e.v_j[h] = in ? v_j[ly] : int16_t(0);
-        e.y_w[h] = in ? y_w[ly] : int16_t(0);
-        e.off[h] = in ? off[ly] : int16_t(0);
+    const int64_t r_step = int64_t(s.r) * 256, kappa_step = int64_t(s.kappa) * 256;
+    uint32_t ok = 0;
+    if constexpr (kVectorRows) {
+      // Every row of the tile as int64 lanes (the rows outside the box are masked off; their
+      // offsets stay in [0, 15]), the same integer steps as the scalar loop below.
+      using B64 = xsimd::batch<int64_t, Arch>;
+      constexpr int L64 = int(B64::size);
+      alignas(64) int64_t iota[L64];
+      for (int i = 0; i < L64; ++i) iota[i] = i;
+      const int64_t dy0 = int64_t(s.my) - (int64_t(y0) * 256 + 128);
+      const B64 lo16(int64_t(-32767)), hi16(int64_t(32767)), half19(int64_t(1) << 18);
+      for (int32_t ly0 = 0; ly0 < kTileSize; ly0 += L64) {
+        const B64 ly = B64::load_aligned(iota) + B64(int64_t(ly0));
+        const B64 r_dy = B64(int64_t(s.r) * dy0) - B64(r_step) * ly;
+        const B64 kappa_dy = B64(int64_t(s.kappa) * dy0) - B64(kappa_step) * ly;
+        const B64 w = xsimd::min(xsimd::max((r_dy + half19) >> 19, lo16), hi16);
+        const B64 yw = (w * w + B64(int64_t(1) << 14)) >> 15;
+        const B64 rel = B64(int64_t(s.mx) - col0) + (kappa_dy >> 16);
+        const B64 j = xsimd::min(xsimd::max((rel + B64(int64_t(128))) >> 8, B64(int64_t(0))), B64(int64_t(kTileSize - 1)));
+        const B64 vj = xsimd::min(xsimd::max((B64(int64_t(s.s)) * (rel - (j << 8)) + half19) >> 19, lo16), hi16);
+        q_store_narrow16<Arch>(vj, c->v_j + ly0);
+        q_store_narrow16<Arch>(yw, c->y_w + ly0);
+        q_store_narrow16<Arch>(B64(int64_t(15)) - j, c->off + ly0);
+        ok |= q_mask_bits<Arch>(yw <= B64(int64_t(s.ylim))) << ly0;
       }
-      e.splat = uint8_t(nb);
-      e.rows = uint8_t(rows);
+      ok &= ((2u << by1) - 1) & ~((1u << by0) - 1);
+    } else {
+      const int64_t dy0 = int64_t(s.my) - (int64_t(y0 + by0) * 256 + 128);
+      int64_t r_dy = int64_t(s.r) * dy0, kappa_dy = int64_t(s.kappa) * dy0;
+      for (int32_t ly = by0; ly <= by1; ++ly, r_dy -= r_step, kappa_dy -= kappa_step) {
+        const int16_t w = q_sat16(q_round_shift(r_dy, 19));
+        const int16_t yw = gs::simd::q_mulhrs(w, w);
+        const int64_t rel = int64_t(s.mx) + q_floor_shift(kappa_dy, 16) - col0;
+        int64_t j = q_floor_shift(rel + 128, 8);
+        j = j < 0 ? 0 : (j > kTileSize - 1 ? kTileSize - 1 : j);
+        c->v_j[ly] = q_sat16(q_round_shift(int64_t(s.s) * (rel - j * 256), 19));
+        c->y_w[ly] = yw;
+        c->off[ly] = int16_t(15 - j);
+        ok |= uint32_t(yw <= s.ylim) << ly;
+      }
     }
+    return ok;
   }
 
   // kDepth: accumulate depth too (registration's keyframes); the image-only forward skips it.
@@ -226,12 +271,14 @@ struct QRasterKernels {
     const int32_t tw = scalar::min(kTileSize, p->width - x0), th = scalar::min(kTileSize, p->height - y0);
     alignas(64) int16_t T[kPixels], acc[4][kPixels], done[kPixels];
     int32_t last[kPixels];
-    for (int i = 0; i < kPixels; ++i) {
-      T[i] = int16_t(kQOne);
-      acc[0][i] = acc[1][i] = acc[2][i] = acc[3][i] = 0;
-      last[i] = 0;
-      done[i] = (i % kTileSize < tw && i / kTileSize < th) ? 0 : -1;
-    }
+    for (int ly = 0; ly < kTileSize; ++ly)
+      for (int lx = 0; lx < kTileSize; ++lx) {
+        const int i = state_index(ly, lx);
+        T[i] = int16_t(kQOne);
+        acc[0][i] = acc[1][i] = acc[2][i] = acc[3][i] = 0;
+        last[i] = 0;
+        done[i] = (lx < tw && ly < th) ? 0 : -1;
+      }
     ChunkSplat chunk[kChunk];
     Entry buckets[kGroups][kChunk];
     int32_t bucket_count[kGroups];
@@ -245,7 +292,12 @@ struct QRasterKernels {
         const QSplat& s = splats[c0 + k];
         int32_t bx0, by0, bx1, by1;
         if (!q_support_box(s, x0, y0, tw, th, &bx0, &by0, &bx1, &by1)) continue;
-        add_splat(s, k, x0, y0, by0, by1, &chunk[nb], buckets, bucket_count, nb);
+        const uint32_t ok = setup_splat(s, k, x0, y0, by0, by1, &chunk[nb]);
+        if (!ok) continue;
+        for (int32_t g = by0 / R; g <= by1 / R; ++g) {
+          const uint32_t rows = (ok >> (g * R)) & ((1u << R) - 1);
+          if (rows) buckets[g][bucket_count[g]++] = Entry{q_rows_lane_bits(rows), uint32_t(nb)};
+        }
         ++nb;
       }
       if (nb == 0) continue;
@@ -253,6 +305,7 @@ struct QRasterKernels {
         const int32_t en = bucket_count[g];
         if (en == 0) continue;
         const Entry* entries = buckets[g];
+        const int32_t ly = g * R;  // the register's first row
         for (int32_t lx0 = 0; lx0 < (R == 1 ? tw : L); lx0 += L) {
           const int o = g * R * kTileSize + lx0;
           M is_done = B::load_aligned(done + o) != B(int16_t(0));
@@ -260,19 +313,19 @@ struct QRasterKernels {
           B t = B::load_aligned(T + o), cr = B::load_aligned(acc[0] + o), cg = B::load_aligned(acc[1] + o);
           B cb = B::load_aligned(acc[2] + o), cd = B::load_aligned(acc[3] + o), cl(int16_t(0));
           for (int32_t n = 0; n < en; ++n) {
-            const Entry& e = entries[n];
+            const Entry e = entries[n];
             const ChunkSplat& c = chunk[e.splat];
             B step, vj, yw;
             M live = !is_done;
             if constexpr (R == 1) {
-              step = B::load_unaligned(c.step + (e.off[0] + lx0));
-              vj = B(e.v_j[0]);
-              yw = B(e.y_w[0]);
+              step = B::load_unaligned(c.step + (c.off[ly] + lx0));
+              vj = B(c.v_j[ly]);
+              yw = B(c.y_w[ly]);
             } else {
-              step = q_rows_load<Arch>(c.step + e.off[0], c.step + e.off[1]);
-              vj = q_rows_broadcast<Arch>(e.v_j[0], e.v_j[1]);
-              yw = q_rows_broadcast<Arch>(e.y_w[0], e.y_w[1]);
-              live = live & q_rows_mask<Arch>(e.rows);
+              step = q_rows_interleave<Arch>(c.step + c.off[ly], c.step + c.off[ly + 1]);
+              vj = broadcast2(pair(c.v_j + ly));
+              yw = broadcast2(pair(c.y_w + ly));
+              live = live & q_rows_mask<Arch>(e.lanes);
             }
             const B v = xsimd::max(xsimd::ssub(vj, step), B(int16_t(-32767)));
             const B y = xsimd::sadd(q_mulhrs(v, v), yw);
@@ -312,7 +365,7 @@ struct QRasterKernels {
     }
     for (int32_t ly = 0; ly < th; ++ly)
       for (int32_t lx = 0; lx < tw; ++lx) {
-        const int o = ly * kTileSize + lx;
+        const int o = state_index(ly, lx);
         const int16_t a4[4] = {acc[0][o], acc[1][o], acc[2][o], acc[3][o]};
         const size_t pix = size_t(y0 + ly) * size_t(p->width) + size_t(x0 + lx);
         qraster_write_pixel(p, T[o], a4, last[o], pix, out_rgb, out_T, out_last, out_depth);
