@@ -79,6 +79,17 @@ void sort_tile_keys(uint64_t* keys, uint64_t* tmp, uint32_t n) {
   if (src != keys) std::memcpy(keys, src, sizeof(uint64_t) * n);
 }
 
+// Index of the lowest set bit of a non-zero word.
+inline int lowest_bit(uint64_t bits) {
+#if defined(__GNUC__)
+  return __builtin_ctzll(bits);
+#else
+  int k = 0;
+  while (!(bits & 1)) bits >>= 1, ++k;
+  return k;
+#endif
+}
+
 template <class F>
 void run_parallel(platform::ThreadPool* pool, size_t n, size_t grain, F& f) {
   if (n == 0) return;
@@ -100,6 +111,7 @@ struct Renderer::Impl {
   float *means2d, *conics, *depths, *colors;
   float* records;  // [N, kSplatStride]: each visible Gaussian's splat record, packed once per frame
   int32_t *radii, *rects;
+  uint64_t* tile_masks;  // [N] which tiles of a rect of <= 64 tiles the splat reaches (see reached_tiles)
   float *acc_means2d, *acc_conics, *acc_opacities, *acc_colors;
   float *scratch_v_means, *scratch_v_log_scales, *scratch_v_quats;
   double* chunk_pose;  // [chunks, 6]
@@ -138,6 +150,7 @@ struct Renderer::Impl {
     records = c.take<float>(G * simd::kSplatStride);
     radii = c.take<int32_t>(G);
     rects = c.take<int32_t>(G * 4);
+    tile_masks = c.take<uint64_t>(G);
     acc_means2d = c.take<float>(G * 2);
     acc_conics = c.take<float>(G * 3);
     acc_opacities = c.take<float>(G);
@@ -235,6 +248,32 @@ struct Renderer::Impl {
       }
     }
     std::memcpy(slot, acc, sizeof(acc));
+  }
+
+  // Bit (ty - rect[1]) * rect width + (tx - rect[0]) set where splat_reaches_tile holds, for a
+  // rect of at most 64 tiles (larger rects are tested again by reached_tiles).
+  uint64_t reached_tile_mask(size_t i) const {
+    return simd::splat_reaches_tiles(means2d + 2 * i, conics + 3 * i, records[i * simd::kSplatStride + simd::kSplatTwoTau],
+                                     rects + 4 * i, pp.width, pp.height);
+  }
+  // Calls f(tile) for every tile Gaussian i is binned to, row by row.
+  template <class F>
+  void reached_tiles(size_t i, F&& f) const {
+    const int32_t* r = rects + 4 * i;
+    const int rw = r[2] - r[0];
+    if (rw * (r[3] - r[1]) <= 64) {
+      const uint64_t row_bits = rw >= 64 ? ~uint64_t(0) : (uint64_t(1) << rw) - 1;
+      const uint64_t mask = tile_masks[i];
+      for (int ty = r[1], shift = 0; ty < r[3]; ++ty, shift += rw)
+        for (uint64_t bits = (mask >> shift) & row_bits; bits != 0; bits &= bits - 1)
+          f(ty * pp.tiles_x + r[0] + lowest_bit(bits));
+      return;
+    }
+    const float two_tau = records[i * simd::kSplatStride + simd::kSplatTwoTau];
+    for (int ty = r[1]; ty < r[3]; ++ty)
+      for (int tx = r[0]; tx < r[2]; ++tx)
+        if (simd::splat_reaches_tile(means2d + 2 * i, conics + 3 * i, two_tau, tx, ty, pp.width, pp.height))
+          f(ty * pp.tiles_x + tx);
   }
 
   void tile_range(int tile, uint32_t* begin, uint32_t* end) const {
@@ -411,25 +450,23 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
       s[simd::kSplatDepth] = m.depths[i];
       simd::splat_support(m.conics + 3 * i, params.opacities[i], s + simd::kSplatTwoTau);
       simd::tile_rect_supported(&pp, m.means2d + 2 * i, m.radii[i], s + simd::kSplatTwoTau, m.rects + 4 * i);
+      m.tile_masks[i] = m.reached_tile_mask(i);
     }
   };
   run_parallel(m.pool, n, kProjectGrain, project);
 
-  // 2. Bin: count intersections per tile, scan, emit keys.
+  // 2. Bin: count intersections per tile, scan, emit keys (the tiles each Gaussian reaches were
+  // found in the parallel projection above; this serial part only counts and scatters).
   std::fill(m.tile_offsets, m.tile_offsets + m.tiles + 1, 0u);
   size_t visible = 0;
   uint64_t total = 0;  // 64-bit: N x tiles can exceed a 32-bit size_t before the capacity check
   for (size_t i = 0; i < n; ++i) {
     if (m.radii[i] == 0) continue;
     ++visible;
-    const int32_t* r = m.rects + 4 * i;
-    const float two_tau = m.records[i * simd::kSplatStride + simd::kSplatTwoTau];
-    for (int ty = r[1]; ty < r[3]; ++ty)
-      for (int tx = r[0]; tx < r[2]; ++tx)
-        if (simd::splat_reaches_tile(m.means2d + 2 * i, m.conics + 3 * i, two_tau, tx, ty, pp.width, pp.height)) {
-          ++m.tile_offsets[ty * pp.tiles_x + tx + 1];
-          ++total;
-        }
+    m.reached_tiles(i, [&](int tile) {
+      ++m.tile_offsets[tile + 1];
+      ++total;
+    });
   }
   stats_.visible = visible;
   stats_.isects = size_t(std::min<uint64_t>(total, SIZE_MAX));
@@ -443,12 +480,7 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
     uint32_t depth_bits;
     std::memcpy(&depth_bits, m.depths + i, 4);  // depth > near plane > 0: float bits are monotonic
     const uint64_t key = (uint64_t(depth_bits) << 32) | uint64_t(i);
-    const int32_t* r = m.rects + 4 * i;
-    const float two_tau = m.records[i * simd::kSplatStride + simd::kSplatTwoTau];
-    for (int ty = r[1]; ty < r[3]; ++ty)
-      for (int tx = r[0]; tx < r[2]; ++tx)
-        if (simd::splat_reaches_tile(m.means2d + 2 * i, m.conics + 3 * i, two_tau, tx, ty, pp.width, pp.height))
-          m.keys[m.tile_cursor[ty * pp.tiles_x + tx]++] = key;
+    m.reached_tiles(i, [&](int tile) { m.keys[m.tile_cursor[tile]++] = key; });
   }
   m.num_isects = size_t(total);
 
