@@ -11,6 +11,7 @@
 // Included only by the per-ISA translation units in ../variants/.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <type_traits>
@@ -138,6 +139,18 @@ inline void q_store_narrow16(const xsimd::batch<int64_t, A>& v, int16_t* out) {
     (void)out;
   }
 }
+// a b for int64 lanes whose values fit int32 (AVX-512 vpmuldq: one uop, where vpmullq is three).
+template <class A>
+inline xsimd::batch<int64_t, A> q_mul_int32(const xsimd::batch<int64_t, A>& a, const xsimd::batch<int64_t, A>& b) {
+#if defined(__AVX512BW__)
+  if constexpr (xsimd::batch<int64_t, A>::size == 8) {
+    return xsimd::batch<int64_t, A>(_mm512_mul_epi32(a, b));
+  } else
+#endif
+  {
+    return a * b;
+  }
+}
 template <class A>
 inline uint32_t q_mask_bits(const xsimd::batch_bool<int64_t, A>& m) {
 #if defined(__AVX512BW__)
@@ -180,6 +193,8 @@ struct QRasterKernels {
     alignas(4) int16_t v_j[kTileSize], y_w[kTileSize], off[kTileSize];
     int32_t ylim2, opacity2, rgb2[3], depth2, index2;  // ylim, opacity, colour, depth, chunk index + 1
   };
+  static_assert(offsetof(QSplat, depth) == offsetof(QSplat, ylim) + 5 * sizeof(int32_t), "QSplat field order");
+  static_assert(offsetof(ChunkSplat, depth2) == offsetof(ChunkSplat, ylim2) + 5 * sizeof(int32_t), "ChunkSplat field order");
   // A splat in the bucket of a register row: its index in the chunk, and (R = 2) the lanes of the
   // register's rows it reaches.
   struct Entry {
@@ -212,14 +227,14 @@ struct QRasterKernels {
       c->step[d] = int16_t(v < -32767 ? -32767 : (v > 32767 ? 32767 : v));
     }
     c->step[31] = 0;
-    c->ylim2 = twice(s.ylim);
-    c->opacity2 = twice(s.opacity);
-    for (int k3 = 0; k3 < 3; ++k3) c->rgb2[k3] = twice(s.rgb[k3]);
-    c->depth2 = twice(s.depth);
+    // ylim, opacity, rgb, depth are consecutive in both records (one vector op for the six).
+    int32_t v6[6];
+    std::memcpy(v6, &s.ylim, sizeof(v6));
+    for (int i = 0; i < 6; ++i) v6[i] = twice(v6[i]);
+    std::memcpy(&c->ylim2, v6, sizeof(v6));
     c->index2 = twice(k + 1);
 
     const int64_t col0 = int64_t(x0) * 256 + 128;
-    const int64_t r_step = int64_t(s.r) * 256, kappa_step = int64_t(s.kappa) * 256;
     uint32_t ok = 0;
     if constexpr (kVectorRows) {
       // Every row of the tile as int64 lanes (the rows outside the box are masked off; their
@@ -232,10 +247,11 @@ struct QRasterKernels {
       const B64 lo16(int64_t(-32767)), hi16(int64_t(32767)), half19(int64_t(1) << 18);
       for (int32_t ly0 = 0; ly0 < kTileSize; ly0 += L64) {
         const B64 ly = B64::load_aligned(iota) + B64(int64_t(ly0));
-        const B64 r_dy = B64(int64_t(s.r) * dy0) - B64(r_step) * ly;
-        const B64 kappa_dy = B64(int64_t(s.kappa) * dy0) - B64(kappa_step) * ly;
+        // r, kappa, ly and w fit int32: r_step ly = (r ly) 256, and so on.
+        const B64 r_dy = B64(int64_t(s.r) * dy0) - (q_mul_int32<Arch>(B64(int64_t(s.r)), ly) << 8);
+        const B64 kappa_dy = B64(int64_t(s.kappa) * dy0) - (q_mul_int32<Arch>(B64(int64_t(s.kappa)), ly) << 8);
         const B64 w = xsimd::min(xsimd::max((r_dy + half19) >> 19, lo16), hi16);
-        const B64 yw = (w * w + B64(int64_t(1) << 14)) >> 15;
+        const B64 yw = (q_mul_int32<Arch>(w, w) + B64(int64_t(1) << 14)) >> 15;
         const B64 rel = B64(int64_t(s.mx) - col0) + (kappa_dy >> 16);
         const B64 j = xsimd::min(xsimd::max((rel + B64(int64_t(128))) >> 8, B64(int64_t(0))), B64(int64_t(kTileSize - 1)));
         const B64 vj = xsimd::min(xsimd::max((B64(int64_t(s.s)) * (rel - (j << 8)) + half19) >> 19, lo16), hi16);
@@ -247,6 +263,7 @@ struct QRasterKernels {
       ok &= ((2u << by1) - 1) & ~((1u << by0) - 1);
     } else {
       const int64_t dy0 = int64_t(s.my) - (int64_t(y0 + by0) * 256 + 128);
+      const int64_t r_step = int64_t(s.r) * 256, kappa_step = int64_t(s.kappa) * 256;
       int64_t r_dy = int64_t(s.r) * dy0, kappa_dy = int64_t(s.kappa) * dy0;
       for (int32_t ly = by0; ly <= by1; ++ly, r_dy -= r_step, kappa_dy -= kappa_step) {
         const int16_t w = q_sat16(q_round_shift(r_dy, 19));
@@ -294,9 +311,13 @@ struct QRasterKernels {
         if (!q_support_box(s, x0, y0, tw, th, &bx0, &by0, &bx1, &by1)) continue;
         const uint32_t ok = setup_splat(s, k, x0, y0, by0, by1, &chunk[nb]);
         if (!ok) continue;
-        for (int32_t g = by0 / R; g <= by1 / R; ++g) {
+        // Every bucket gets the entry written at its end, and keeps it where the splat reaches
+        // one of its rows: a fixed loop without data-dependent branches (which rows a splat
+        // reaches varies from splat to splat).
+        for (int32_t g = 0; g < kGroups; ++g) {
           const uint32_t rows = (ok >> (g * R)) & ((1u << R) - 1);
-          if (rows) buckets[g][bucket_count[g]++] = Entry{q_rows_lane_bits(rows), uint32_t(nb)};
+          buckets[g][bucket_count[g]] = Entry{q_rows_lane_bits(rows), uint32_t(nb)};
+          bucket_count[g] += rows != 0;
         }
         ++nb;
       }
