@@ -23,6 +23,7 @@ namespace {
 constexpr size_t kArenaAlign = 64;
 constexpr size_t kExtraBytes = 64;       // over-read pad after every buffer (GS_EXTRA_BYTES)
 constexpr size_t kProjectGrain = 1024;   // Gaussians per projection chunk
+constexpr size_t kBinRanges = 8;         // most Gaussian ranges binned in parallel
 // Per-tile slot of the pose normal equations (doubles): [0, 21) upper triangle of J^T W J row by
 // row, [21, 27) J^T W r, 27 cost, 28 weight sum, 29 pixel count; padded to 32.
 constexpr int kPoseSlot = 32;
@@ -119,7 +120,9 @@ struct Renderer::Impl {
   float* pose_d_conics;   // [N, 3, 6] ... and of the conic
   double* pose_slots;     // [tiles, kPoseSlot] per-tile normal equations
   // per tile
-  uint32_t *tile_offsets, *tile_cursor;  // [tiles + 1]
+  uint32_t* tile_offsets;  // [tiles + 1]
+  uint32_t* range_counts;  // [kBinRanges, tiles] binning: keys per range and tile, then cursors
+  size_t range_visible[kBinRanges];
   // per intersection
   uint64_t* keys;  // (depth bits << 32) | gaussian id, sorted within each tile
   uint64_t* keys_tmp;  // radix-sort scratch, same layout as keys
@@ -160,7 +163,7 @@ struct Renderer::Impl {
     scratch_v_quats = c.take<float>(G * 4);
     chunk_pose = c.take<double>((G / kProjectGrain + 1) * 6);
     tile_offsets = c.take<uint32_t>(tiles_max + 1);
-    tile_cursor = c.take<uint32_t>(tiles_max + 1);
+    range_counts = c.take<uint32_t>(tiles_max * kBinRanges);
     keys = c.take<uint64_t>(I);
     keys_tmp = c.take<uint64_t>(I);
     splats = c.take<float>(I * simd::kSplatStride);
@@ -455,33 +458,59 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
   };
   run_parallel(m.pool, n, kProjectGrain, project);
 
-  // 2. Bin: count intersections per tile, scan, emit keys (the tiles each Gaussian reaches were
-  // found in the parallel projection above; this serial part only counts and scatters).
-  std::fill(m.tile_offsets, m.tile_offsets + m.tiles + 1, 0u);
+  // 2. Bin: count intersections per tile, scan, emit keys. The Gaussians are split into
+  // contiguous ranges, counted and emitted in parallel (the tiles each Gaussian reaches were found
+  // in the projection above); a tile's keys are range 0's, then range 1's, ..., so they arrive in
+  // increasing id order as sort_tile_keys needs, whatever the number of ranges.
+  const size_t ranges = std::min<size_t>(kBinRanges, m.pool ? size_t(m.pool->num_threads()) : 1);
+  const size_t tiles = size_t(m.tiles);
+  auto range_begin = [&](size_t r) { return r * n / ranges; };
+  auto count = [&](size_t b, size_t e, int) {
+    for (size_t r = b; r < e; ++r) {
+      uint32_t* c = m.range_counts + r * tiles;
+      std::fill(c, c + tiles, 0u);
+      size_t visible = 0;
+      for (size_t i = range_begin(r); i < range_begin(r + 1); ++i) {
+        if (m.radii[i] == 0) continue;
+        ++visible;
+        m.reached_tiles(i, [&](int tile) { ++c[tile]; });
+      }
+      m.range_visible[r] = visible;
+    }
+  };
+  run_parallel(m.pool, ranges, 1, count);
+  // Scan: tile_offsets[tile] = keys of the tiles before; each range's count becomes its cursor.
   size_t visible = 0;
+  for (size_t r = 0; r < ranges; ++r) visible += m.range_visible[r];
   uint64_t total = 0;  // 64-bit: N x tiles can exceed a 32-bit size_t before the capacity check
-  for (size_t i = 0; i < n; ++i) {
-    if (m.radii[i] == 0) continue;
-    ++visible;
-    m.reached_tiles(i, [&](int tile) {
-      ++m.tile_offsets[tile + 1];
-      ++total;
-    });
+  for (size_t tile = 0; tile < tiles; ++tile) {
+    m.tile_offsets[tile] = uint32_t(total);
+    for (size_t r = 0; r < ranges; ++r) {
+      uint32_t& c = m.range_counts[r * tiles + tile];
+      const uint32_t k = c;
+      c = uint32_t(total);  // wraps only when total exceeds the capacity (< 2^32), refused below
+      total += k;
+    }
   }
+  m.tile_offsets[tiles] = uint32_t(total);
   stats_.visible = visible;
   stats_.isects = size_t(std::min<uint64_t>(total, SIZE_MAX));
   if (total > uint64_t(capacity_.max_isects))
     return capacity_exceeded(std::to_string(total) + " Gaussian-tile intersections exceed the planned " +
                              std::to_string(capacity_.max_isects));
-  for (int tile = 0; tile < m.tiles; ++tile) m.tile_offsets[tile + 1] += m.tile_offsets[tile];
-  std::memcpy(m.tile_cursor, m.tile_offsets, sizeof(uint32_t) * size_t(m.tiles + 1));
-  for (size_t i = 0; i < n; ++i) {
-    if (m.radii[i] == 0) continue;
-    uint32_t depth_bits;
-    std::memcpy(&depth_bits, m.depths + i, 4);  // depth > near plane > 0: float bits are monotonic
-    const uint64_t key = (uint64_t(depth_bits) << 32) | uint64_t(i);
-    m.reached_tiles(i, [&](int tile) { m.keys[m.tile_cursor[tile]++] = key; });
-  }
+  auto emit = [&](size_t b, size_t e, int) {
+    for (size_t r = b; r < e; ++r) {
+      uint32_t* cursor = m.range_counts + r * tiles;
+      for (size_t i = range_begin(r); i < range_begin(r + 1); ++i) {
+        if (m.radii[i] == 0) continue;
+        uint32_t depth_bits;
+        std::memcpy(&depth_bits, m.depths + i, 4);  // depth > near plane > 0: float bits are monotonic
+        const uint64_t key = (uint64_t(depth_bits) << 32) | uint64_t(i);
+        m.reached_tiles(i, [&](int tile) { m.keys[cursor[tile]++] = key; });
+      }
+    }
+  };
+  run_parallel(m.pool, ranges, 1, emit);
   m.num_isects = size_t(total);
 
   // 2b. Fixed point: each visible Gaussian's record becomes its integer record in place (binning,
