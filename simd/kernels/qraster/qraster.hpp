@@ -70,16 +70,47 @@ inline xsimd::batch<int16_t, A> q_mulhrs(const xsimd::batch<int16_t, A>& a, cons
   }
 }
 
+// The constants of the blend loop. GCC re-creates broadcast constants inside the loop from a
+// general register (a shuffle-port instruction each, every iteration); an empty asm statement
+// that "changes" them makes that impossible, so they stay in registers.
 template <class A>
-inline xsimd::batch<int16_t, A> q_alpha(const xsimd::batch<int16_t, A>& y, const xsimd::batch<int16_t, A>& opacity) {
+struct QBlendConsts {
+  using B = xsimd::batch<int16_t, A>;
+  B poly[5], alpha_max, stop, v_min;
+  QBlendConsts() {
+    for (int k = 0; k < 5; ++k) poly[k] = B(kQExpPoly[k]);
+    alpha_max = B(int16_t(kQAlphaMax));
+    stop = B(int16_t(kQTransmittanceStop));
+    v_min = B(int16_t(-32767));
+    for (B* b : {&poly[0], &poly[1], &poly[2], &poly[3], &poly[4], &alpha_max, &stop, &v_min}) keep_in_register(*b);
+  }
+  static void keep_in_register(B& b) {
+#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+    typename B::register_type r = b;
+    __asm__("" : "+v"(r));
+    b = B(r);
+#elif defined(__GNUC__) && (defined(__aarch64__) || defined(__ARM_NEON))
+    typename B::register_type r = b;
+    __asm__("" : "+w"(r));
+    b = B(r);
+#else
+    (void)b;
+#endif
+  }
+};
+
+// alpha = min(o h(y / 8)^8, 0.99) per lane (q_alpha in gs/simd/qsplat.h).
+template <class A>
+inline xsimd::batch<int16_t, A> q_alpha(const xsimd::batch<int16_t, A>& y, const xsimd::batch<int16_t, A>& opacity,
+                                        const QBlendConsts<A>& k) {
   using B = xsimd::batch<int16_t, A>;
   const B z = xsimd::sadd(y, y);
-  B h(kQExpPoly[4]);
-  for (int k = 3; k >= 0; --k) h = xsimd::sadd(B(kQExpPoly[k]), q_mulhrs(h, z));
+  B h = k.poly[4];
+  for (int i = 3; i >= 0; --i) h = xsimd::sadd(k.poly[i], q_mulhrs(h, z));
   B e = q_mulhrs(h, h);
   e = q_mulhrs(e, e);
   e = q_mulhrs(e, e);
-  return xsimd::min(q_mulhrs(e, opacity), B(int16_t(kQAlphaMax)));
+  return xsimd::min(q_mulhrs(e, opacity), k.alpha_max);
 }
 
 // Tile rows per register: two on AVX-512 (32 int16 lanes), else one (16 lanes) or half of one (8).
@@ -300,6 +331,7 @@ struct QRasterKernels {
     Entry buckets[kGroups][kChunk];
     int32_t bucket_count[kGroups];
     const int32_t groups = (th + R - 1) / R;
+    const QBlendConsts<Arch> consts;
     bool all_done = false;
     for (int32_t c0 = 0; c0 < count && !all_done; c0 += kChunk) {
       const int32_t cn = scalar::min(kChunk, count - c0);
@@ -331,13 +363,14 @@ struct QRasterKernels {
           const int o = g * R * kTileSize + lx0;
           M is_done = B::load_aligned(done + o) != B(int16_t(0));
           if (xsimd::all(is_done)) continue;
+          M not_done = !is_done;
           B t = B::load_aligned(T + o), cr = B::load_aligned(acc[0] + o), cg = B::load_aligned(acc[1] + o);
           B cb = B::load_aligned(acc[2] + o), cd = B::load_aligned(acc[3] + o), cl(int16_t(0));
           for (int32_t n = 0; n < en; ++n) {
             const Entry e = entries[n];
             const ChunkSplat& c = chunk[e.splat];
             B step, vj, yw;
-            M live = !is_done;
+            M live = not_done;
             if constexpr (R == 1) {
               step = B::load_unaligned(c.step + (c.off[ly] + lx0));
               vj = B(c.v_j[ly]);
@@ -348,14 +381,14 @@ struct QRasterKernels {
               yw = broadcast2(pair(c.y_w + ly));
               live = live & q_rows_mask<Arch>(e.lanes);
             }
-            const B v = xsimd::max(xsimd::ssub(vj, step), B(int16_t(-32767)));
+            const B v = xsimd::max(xsimd::ssub(vj, step), consts.v_min);
             const B y = xsimd::sadd(q_mulhrs(v, v), yw);
             const M in = (y <= broadcast2(c.ylim2)) & live;
             if (!xsimd::any(in)) continue;
-            const B alpha = q_alpha(y, broadcast2(c.opacity2));
+            const B alpha = q_alpha(y, broadcast2(c.opacity2), consts);
             const B alpha_t = q_mulhrs(alpha, t);  // = q_mulhrs(t, alpha)
             const B next = t - alpha_t;
-            const M stop = in & (next < B(int16_t(kQTransmittanceStop)));
+            const M stop = in & (next < consts.stop);
             const M use = in & !stop;
             const B w = xsimd::select(use, alpha_t, B(int16_t(0)));
             cr = xsimd::sadd(cr, q_mulhrs(w, broadcast2(c.rgb2[0])));
@@ -366,6 +399,7 @@ struct QRasterKernels {
             cl = xsimd::select(use, broadcast2(c.index2), cl);
             if (xsimd::any(stop)) {
               is_done = is_done | stop;
+              not_done = !is_done;
               if (xsimd::all(is_done)) break;
             }
           }
