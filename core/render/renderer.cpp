@@ -123,6 +123,7 @@ struct Renderer::Impl {
   uint32_t* tile_offsets;  // [tiles + 1]
   uint32_t* range_counts;  // [kBinRanges, tiles] binning: keys per range and tile, then cursors
   size_t range_visible[kBinRanges];
+  float range_max_depth[kBinRanges];
   // per intersection
   uint64_t* keys;  // (depth bits << 32) | gaussian id, sorted within each tile
   uint64_t* keys_tmp;  // radix-sort scratch, same layout as keys
@@ -470,12 +471,15 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
       uint32_t* c = m.range_counts + r * tiles;
       std::fill(c, c + tiles, 0u);
       size_t visible = 0;
+      float max_depth = 0;
       for (size_t i = range_begin(r); i < range_begin(r + 1); ++i) {
         if (m.radii[i] == 0) continue;
         ++visible;
+        max_depth = std::max(max_depth, m.depths[i]);
         m.reached_tiles(i, [&](int tile) { ++c[tile]; });
       }
       m.range_visible[r] = visible;
+      m.range_max_depth[r] = max_depth;
     }
   };
   run_parallel(m.pool, ranges, 1, count);
@@ -498,6 +502,18 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
   if (total > uint64_t(capacity_.max_isects))
     return capacity_exceeded(std::to_string(total) + " Gaussian-tile intersections exceed the planned " +
                              std::to_string(capacity_.max_isects));
+  // Fixed point: each visible Gaussian's record becomes its integer record in place, in the emit
+  // pass right after its keys (binning is the last reader of the float fields; a QSplat fills a
+  // float record's slot). Depth is stored relative to the farthest visible Gaussian.
+  float depth_scale = 0;
+  if (options.fixed_point) {
+    for (size_t r = 0; r < ranges; ++r) depth_scale = std::max(depth_scale, m.range_max_depth[r]);
+    if (!(depth_scale > 0)) depth_scale = 1;
+    m.qrp.width = W;
+    m.qrp.height = H;
+    for (int c = 0; c < 3; ++c) m.qrp.background[c] = simd::q15_from_unit(options.background[c]);
+    m.qrp.depth_scale = depth_scale;
+  }
   auto emit = [&](size_t b, size_t e, int) {
     for (size_t r = b; r < e; ++r) {
       uint32_t* cursor = m.range_counts + r * tiles;
@@ -507,33 +523,16 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
         std::memcpy(&depth_bits, m.depths + i, 4);  // depth > near plane > 0: float bits are monotonic
         const uint64_t key = (uint64_t(depth_bits) << 32) | uint64_t(i);
         m.reached_tiles(i, [&](int tile) { m.keys[cursor[tile]++] = key; });
+        if (options.fixed_point) {
+          simd::QSplat q;
+          simd::qsplat_from_record(m.records + i * simd::kSplatStride, depth_scale, &q);
+          std::memcpy(m.records + i * simd::kSplatStride, &q, sizeof(q));
+        }
       }
     }
   };
   run_parallel(m.pool, ranges, 1, emit);
   m.num_isects = size_t(total);
-
-  // 2b. Fixed point: each visible Gaussian's record becomes its integer record in place (binning,
-  // the last reader of the float fields, is done; a QSplat fills a float record's slot).
-  if (options.fixed_point) {
-    float depth_scale = 0;
-    for (size_t i = 0; i < n; ++i)
-      if (m.radii[i] != 0) depth_scale = std::max(depth_scale, m.depths[i]);
-    if (!(depth_scale > 0)) depth_scale = 1;
-    m.qrp.width = W;
-    m.qrp.height = H;
-    for (int c = 0; c < 3; ++c) m.qrp.background[c] = simd::q15_from_unit(options.background[c]);
-    m.qrp.depth_scale = depth_scale;
-    auto to_fixed = [&](size_t b, size_t e, int) {
-      for (size_t i = b; i < e; ++i) {
-        if (m.radii[i] == 0) continue;
-        simd::QSplat q;
-        simd::qsplat_from_record(m.records + i * simd::kSplatStride, depth_scale, &q);
-        std::memcpy(m.records + i * simd::kSplatStride, &q, sizeof(q));
-      }
-    };
-    run_parallel(m.pool, n, kProjectGrain, to_fixed);
-  }
 
   // 3. Per tile: sort by (depth, id), copy the records in that order, blend.
   auto raster = [&](size_t b, size_t e, int) {
