@@ -122,6 +122,49 @@ GS_SIMD_TEST_CASE(qraster_hard, "fixed-point raster kernels: saturated tiles, hu
     for (uint64_t seed = 0; seed < 4; ++seed) check_tile(kt, 48, 48, 1, 1, 90, 3.0f, 0.02f, k, 30 + seed + 10 * uint64_t(k));
 }
 
+// Integer records built directly, over the whole documented range of each field rather than what
+// the float conversion produces: centres up to 4096 px away, |kappa| up to 2^14, s and r from 0 to
+// 2^25, any ylim, opacity and extents. The kernels compute a splat's row values in int32 lanes when
+// its row centres are within 128 px of the tile and in int64 otherwise; both sides of that split,
+// and of the saturations inside it, must give the reference's bits.
+GS_SIMD_TEST_CASE(qraster_integer_records, "fixed-point raster kernels are bit-exact on integer records over the full field ranges") {
+  for (uint64_t seed = 0; seed < 24; ++seed) {
+    std::mt19937_64 rng(900 + seed);
+    auto pick = [&](int64_t lo, int64_t hi) { return std::uniform_int_distribution<int64_t>(lo, hi)(rng); };
+    const int count = 40 + int(seed * 5);
+    std::vector<QSplat> q(static_cast<size_t>(count));
+    for (QSplat& r : q) {
+      const int64_t reach = seed % 3 == 0 ? (int64_t(1) << 20) : (seed % 3 == 1 ? (int64_t(1) << 15) : (int64_t(1) << 13));
+      r.mx = int32_t(24 * 256 + pick(-reach, reach));  // around tile (1, 1)
+      r.my = int32_t(24 * 256 + pick(-reach, reach));
+      const int kind = int(pick(0, 4));
+      r.kappa = int32_t(kind == 0 ? pick(-(int64_t(1) << 30), int64_t(1) << 30) : pick(-(int64_t(1) << 17), int64_t(1) << 17));
+      r.s = int32_t(kind == 1 ? pick(0, 64) : (kind == 4 ? pick(0, int64_t(1) << 17) : pick(0, int64_t(1) << 25)));
+      r.r = int32_t(kind == 2 || kind == 4 ? pick(0, 64) : pick(0, int64_t(1) << 25));
+      if (kind == 4) {  // a wide splat whose row centres are about 128 px from column 0: either side of the int32 split
+        r.mx = int32_t(16 * 256 + 128 + (pick(0, 1) ? 1 : -1) * ((int64_t(1) << 15) + pick(-600, 600)));
+        r.kappa = int32_t(pick(-2000, 2000));
+        r.ext_x = int32_t(pick(int64_t(1) << 15, int64_t(1) << 16));
+      }
+      r.ylim = int32_t(pick(-2, 11349));
+      r.opacity = int32_t(pick(0, 32767));
+      for (int32_t& c : r.rgb) c = int32_t(pick(0, 32767));
+      r.depth = int32_t(pick(0, 32767));
+      if (kind != 4) r.ext_x = int32_t(pick(-1, int64_t(1) << 16));
+      r.ext_y = int32_t(pick(-1, int64_t(1) << 16));
+    }
+    CAPTURE(seed);
+    const gs::simd::QRasterParams p = qparams(48, 48, 1.0f);
+    Outputs ref(48 * 48), out(48 * 48);
+    gs::simd::qraster_fwd_tile_ref(&p, 1, 1, q.data(), count, ref.rgb.data(), ref.T.data(), ref.last.data(), ref.depth.data());
+    kt->qraster_fwd_tile(&p, 1, 1, q.data(), count, out.rgb.data(), out.T.data(), out.last.data(), out.depth.data());
+    REQUIRE(std::memcmp(out.rgb.data(), ref.rgb.data(), out.rgb.size() * sizeof(float)) == 0);
+    REQUIRE(std::memcmp(out.T.data(), ref.T.data(), out.T.size() * sizeof(float)) == 0);
+    REQUIRE(std::memcmp(out.depth.data(), ref.depth.data(), out.depth.size() * sizeof(float)) == 0);
+    REQUIRE(out.last == ref.last);
+  }
+}
+
 TEST_CASE("fixed-point helpers: mulhrs, saturating adds and the alpha polynomial against exact arithmetic") {
   using namespace gs::simd;
   std::mt19937 rng(5);

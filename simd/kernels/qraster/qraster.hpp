@@ -195,6 +195,44 @@ inline uint32_t q_mask_bits(const xsimd::batch_bool<int64_t, A>& m) {
   }
 }
 
+// int32 lanes (already in int16 range) to int16, stored: 16 lanes (AVX-512 vpmovdw) or 8 (AVX2).
+template <class A>
+inline void q_store_narrow16(const xsimd::batch<int32_t, A>& v, int16_t* out) {
+  constexpr size_t n = xsimd::batch<int32_t, A>::size;
+#if defined(__AVX512BW__)
+  if constexpr (n == 16) {
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out), _mm512_cvtepi32_epi16(v));
+    return;
+  }
+#endif
+#if defined(__AVX2__)
+  if constexpr (n == 8) {
+    const __m256i r = v;
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out), _mm_packs_epi32(_mm256_castsi256_si128(r), _mm256_extracti128_si256(r, 1)));
+    return;
+  }
+#endif
+  alignas(64) int32_t tmp[n];
+  v.store_aligned(tmp);
+  for (size_t i = 0; i < n; ++i) out[i] = int16_t(tmp[i]);
+}
+// Bit i set where lane i of m is true.
+template <class A>
+inline uint32_t q_mask_bits(const xsimd::batch_bool<int32_t, A>& m) {
+  constexpr size_t n = xsimd::batch<int32_t, A>::size;
+#if defined(__AVX512BW__)
+  if constexpr (n == 16) return uint32_t(__mmask16(m));
+#endif
+#if defined(__AVX2__)
+  if constexpr (n == 8) return uint32_t(_mm256_movemask_ps(_mm256_castsi256_ps(__m256i(m))));
+#endif
+  alignas(64) int32_t tmp[n];
+  xsimd::select(m, xsimd::batch<int32_t, A>(1), xsimd::batch<int32_t, A>(0)).store_aligned(tmp);
+  uint32_t bits = 0;
+  for (size_t i = 0; i < n; ++i) bits |= uint32_t(tmp[i]) << i;
+  return bits;
+}
+
 template <class Arch>
 struct QRasterKernels {
   using B = xsimd::batch<int16_t, Arch>;
@@ -206,9 +244,11 @@ struct QRasterKernels {
   static constexpr int kChunk = 128;  // splats per chunk
   static_assert(kTileSize % L == 0 || L == R * kTileSize, "a register holds part of a tile row or whole rows");
   static constexpr int kPixels = kTileSize * kTileSize;
-  // The row values of a splat in int64 lanes where the ISA has int64 multiply, shift and min/max
-  // (AVX-512); a scalar loop elsewhere.
-  static constexpr bool kVectorRows = R == 2;
+  // How a splat's row values are computed: in int32 lanes on AVX2 and AVX-512 for splats whose
+  // row centres are near the tile (nearly all), else in int64 lanes on AVX-512 (int64 multiply,
+  // shift and min/max) and one row at a time elsewhere.
+  static constexpr bool kRows32 = L >= kTileSize;
+  static constexpr bool kRows64 = R == 2;
 
   // Index of pixel (ly, lx) in the tile's state arrays: row-major, or row pairs interleaved (R = 2).
   static constexpr int state_index(int ly, int lx) {
@@ -247,9 +287,9 @@ struct QRasterKernels {
     return x;
   }
 
-  // Chunk setup of one splat: its constants, column-step table and row values; returns the rows
-  // (bit ly) that reach y <= ylim somewhere. The row values are q_splat_row's, stepped row to row
-  // by exact int64 increments (dy falls by 256 per row).
+  // Chunk setup of one splat: its constants, column-step table and row values (q_splat_row's, for
+  // the rows of its support box at least); returns the rows of the box (bit ly) that reach
+  // y <= ylim somewhere.
   static uint32_t setup_splat(const QSplat& s, int32_t k, int32_t x0, int32_t y0, int32_t by0, int32_t by1,
                               ChunkSplat* c) {
     // q_column_step(s, d) = sat16((d s + 2^10) >> 11): |d s| <= 15 2^25 fits int32.
@@ -266,47 +306,106 @@ struct QRasterKernels {
     c->index2 = twice(k + 1);
 
     const int64_t col0 = int64_t(x0) * 256 + 128;
+    const int64_t dy0 = int64_t(s.my) - (int64_t(y0) * 256 + 128);  // dy of the tile's row 0
     uint32_t ok = 0;
-    if constexpr (kVectorRows) {
-      // Every row of the tile as int64 lanes (the rows outside the box are masked off; their
-      // offsets stay in [0, 15]), the same integer steps as the scalar loop below.
-      using B64 = xsimd::batch<int64_t, Arch>;
-      constexpr int L64 = int(B64::size);
-      alignas(64) int64_t iota[L64];
-      for (int i = 0; i < L64; ++i) iota[i] = i;
-      const int64_t dy0 = int64_t(s.my) - (int64_t(y0) * 256 + 128);
-      const B64 lo16(int64_t(-32767)), hi16(int64_t(32767)), half19(int64_t(1) << 18);
-      for (int32_t ly0 = 0; ly0 < kTileSize; ly0 += L64) {
-        const B64 ly = B64::load_aligned(iota) + B64(int64_t(ly0));
-        // r, kappa, ly and w fit int32: r_step ly = (r ly) 256, and so on.
-        const B64 r_dy = B64(int64_t(s.r) * dy0) - (q_mul_int32<Arch>(B64(int64_t(s.r)), ly) << 8);
-        const B64 kappa_dy = B64(int64_t(s.kappa) * dy0) - (q_mul_int32<Arch>(B64(int64_t(s.kappa)), ly) << 8);
-        const B64 w = xsimd::min(xsimd::max((r_dy + half19) >> 19, lo16), hi16);
-        const B64 yw = (q_mul_int32<Arch>(w, w) + B64(int64_t(1) << 14)) >> 15;
-        const B64 rel = B64(int64_t(s.mx) - col0) + (kappa_dy >> 16);
-        const B64 j = xsimd::min(xsimd::max((rel + B64(int64_t(128))) >> 8, B64(int64_t(0))), B64(int64_t(kTileSize - 1)));
-        const B64 vj = xsimd::min(xsimd::max((B64(int64_t(s.s)) * (rel - (j << 8)) + half19) >> 19, lo16), hi16);
-        q_store_narrow16<Arch>(vj, c->v_j + ly0);
-        q_store_narrow16<Arch>(yw, c->y_w + ly0);
-        q_store_narrow16<Arch>(B64(int64_t(15)) - j, c->off + ly0);
-        ok |= q_mask_bits<Arch>(yw <= B64(int64_t(s.ylim))) << ly0;
-      }
-      ok &= ((2u << by1) - 1) & ~((1u << by0) - 1);
-    } else {
-      const int64_t dy0 = int64_t(s.my) - (int64_t(y0 + by0) * 256 + 128);
-      const int64_t r_step = int64_t(s.r) * 256, kappa_step = int64_t(s.kappa) * 256;
-      int64_t r_dy = int64_t(s.r) * dy0, kappa_dy = int64_t(s.kappa) * dy0;
-      for (int32_t ly = by0; ly <= by1; ++ly, r_dy -= r_step, kappa_dy -= kappa_step) {
-        const int16_t w = q_sat16(q_round_shift(r_dy, 19));
-        const int16_t yw = gs::simd::q_mulhrs(w, w);
-        const int64_t rel = int64_t(s.mx) + q_floor_shift(kappa_dy, 16) - col0;
-        int64_t j = q_floor_shift(rel + 128, 8);
-        j = j < 0 ? 0 : (j > kTileSize - 1 ? kTileSize - 1 : j);
-        c->v_j[ly] = q_sat16(q_round_shift(int64_t(s.s) * (rel - j * 256), 19));
-        c->y_w[ly] = yw;
-        c->off[ly] = int16_t(15 - j);
-        ok |= uint32_t(yw <= s.ylim) << ly;
-      }
+    bool have_rows = false;
+    if constexpr (kRows32) have_rows = rows_int32(s, col0, dy0, c, &ok);
+    if (!have_rows) {
+      if constexpr (kRows64) ok = rows_int64(s, col0, dy0, c);
+      else ok = rows_scalar(s, col0, dy0, by0, by1, c);
+    }
+    return ok & ((2u << by1) - 1) & ~((1u << by0) - 1);
+  }
+
+  // The row values of all 16 rows in int32 lanes, for a splat whose row centres lie within 128 px
+  // of the tile's column 0 (false otherwise, and nothing written). Each int64 product of
+  // q_splat_row is split so that every partial product fits int32 and the floors are exact:
+  //   r dy + 2^18 = A - 256 r ly, A = r dy0 + 2^18 = qA 2^19 + mA, r = rh 2^11 + rl:
+  //     w = qA - rh ly + floor((mA - 256 rl ly) / 2^19) (|qA| clamped to 2^20: saturated either way);
+  //   kappa dy = K - 256 kappa ly, K = qK 2^16 + mK, kappa = kh 2^8 + kl:
+  //     rel = mx - col0 + qK - kh ly + floor((mK - 256 kl ly) / 2^16);
+  //   s X + 2^18 with X = rel - 256 j (|X| < 2^16), s = sh 2^11 + sl, P = sh X = ph 2^8 + pl:
+  //     v_j = ph + floor((pl 2^11 + sl X + 2^18) / 2^19).
+  static bool rows_int32(const QSplat& s, int64_t col0, int64_t dy0, ChunkSplat* c, uint32_t* ok) {
+    const int64_t kappa_dy0 = int64_t(s.kappa) * dy0;
+    const int64_t rel0 = int64_t(s.mx) - col0 + q_floor_shift(kappa_dy0, 16);
+    const int64_t rel15 = int64_t(s.mx) - col0 + q_floor_shift(kappa_dy0 - int64_t(s.kappa) * 256 * (kTileSize - 1), 16);
+    constexpr int64_t kNear = int64_t(1) << 15;  // rel is monotone in ly: both ends bound every row
+    if (rel0 < -kNear || rel0 > kNear || rel15 < -kNear || rel15 > kNear) return false;
+    using I = xsimd::batch<int32_t, Arch>;
+    constexpr int L32 = int(I::size);
+    alignas(64) int32_t iota[L32];
+    for (int i = 0; i < L32; ++i) iota[i] = i;
+    const int64_t a = int64_t(s.r) * dy0 + (int64_t(1) << 18);
+    const int64_t qa = q_floor_shift(a, 19);
+    const I qA(int32_t(qa < -(int64_t(1) << 20) ? -(int64_t(1) << 20) : (qa > (int64_t(1) << 20) ? (int64_t(1) << 20) : qa)));
+    const I mA(int32_t(a & ((int64_t(1) << 19) - 1)));
+    const I rh(s.r >> 11), rl256((s.r & 2047) << 8);
+    const I C = I(int32_t(rel0)), mK = I(int32_t(kappa_dy0 & 0xFFFF));
+    const I kh(s.kappa >> 8), kl256((s.kappa & 255) << 8);
+    const I sh(s.s >> 11), sl(s.s & 2047);
+    const I lo16(-32767), hi16(32767), ylim(s.ylim);
+    uint32_t bits = 0;
+    for (int32_t ly0 = 0; ly0 < kTileSize; ly0 += L32) {
+      const I ly = I::load_aligned(iota) + I(ly0);
+      const I w = xsimd::min(xsimd::max(qA - rh * ly + ((mA - rl256 * ly) >> 19), lo16), hi16);
+      const I yw = (w * w + I(1 << 14)) >> 15;
+      const I rel = C - kh * ly + ((mK - kl256 * ly) >> 16);
+      const I j = xsimd::min(xsimd::max((rel + I(128)) >> 8, I(0)), I(kTileSize - 1));
+      const I x = rel - (j << 8);
+      const I p = sh * x;
+      const I vj = xsimd::min(xsimd::max((p >> 8) + ((((p & I(255)) << 11) + sl * x + I(1 << 18)) >> 19), lo16), hi16);
+      q_store_narrow16<Arch>(vj, c->v_j + ly0);
+      q_store_narrow16<Arch>(yw, c->y_w + ly0);
+      q_store_narrow16<Arch>(I(kTileSize - 1) - j, c->off + ly0);
+      bits |= q_mask_bits<Arch>(yw <= ylim) << ly0;
+    }
+    *ok = bits;
+    return true;
+  }
+
+  // The row values of all 16 rows in int64 lanes (AVX-512: vpmullq, vpsraq, vpminsq/vpmaxsq), for
+  // any splat; the rows outside the box are masked off by the caller, their offsets stay in [0, 15].
+  static uint32_t rows_int64(const QSplat& s, int64_t col0, int64_t dy0, ChunkSplat* c) {
+    using B64 = xsimd::batch<int64_t, Arch>;
+    constexpr int L64 = int(B64::size);
+    alignas(64) int64_t iota[L64];
+    for (int i = 0; i < L64; ++i) iota[i] = i;
+    const B64 lo16(int64_t(-32767)), hi16(int64_t(32767)), half19(int64_t(1) << 18);
+    uint32_t ok = 0;
+    for (int32_t ly0 = 0; ly0 < kTileSize; ly0 += L64) {
+      const B64 ly = B64::load_aligned(iota) + B64(int64_t(ly0));
+      // r, kappa, ly and w fit int32: r_step ly = (r ly) 256, and so on.
+      const B64 r_dy = B64(int64_t(s.r) * dy0) - (q_mul_int32<Arch>(B64(int64_t(s.r)), ly) << 8);
+      const B64 kappa_dy = B64(int64_t(s.kappa) * dy0) - (q_mul_int32<Arch>(B64(int64_t(s.kappa)), ly) << 8);
+      const B64 w = xsimd::min(xsimd::max((r_dy + half19) >> 19, lo16), hi16);
+      const B64 yw = (q_mul_int32<Arch>(w, w) + B64(int64_t(1) << 14)) >> 15;
+      const B64 rel = B64(int64_t(s.mx) - col0) + (kappa_dy >> 16);
+      const B64 j = xsimd::min(xsimd::max((rel + B64(int64_t(128))) >> 8, B64(int64_t(0))), B64(int64_t(kTileSize - 1)));
+      const B64 vj = xsimd::min(xsimd::max((B64(int64_t(s.s)) * (rel - (j << 8)) + half19) >> 19, lo16), hi16);
+      q_store_narrow16<Arch>(vj, c->v_j + ly0);
+      q_store_narrow16<Arch>(yw, c->y_w + ly0);
+      q_store_narrow16<Arch>(B64(int64_t(15)) - j, c->off + ly0);
+      ok |= q_mask_bits<Arch>(yw <= B64(int64_t(s.ylim))) << ly0;
+    }
+    return ok;
+  }
+
+  // The row values of rows by0..by1, one at a time, stepped by exact int64 increments.
+  static uint32_t rows_scalar(const QSplat& s, int64_t col0, int64_t dy0, int32_t by0, int32_t by1, ChunkSplat* c) {
+    const int64_t r_step = int64_t(s.r) * 256, kappa_step = int64_t(s.kappa) * 256;
+    int64_t r_dy = int64_t(s.r) * (dy0 - 256 * by0), kappa_dy = int64_t(s.kappa) * (dy0 - 256 * by0);
+    uint32_t ok = 0;
+    for (int32_t ly = by0; ly <= by1; ++ly, r_dy -= r_step, kappa_dy -= kappa_step) {
+      const int16_t w = q_sat16(q_round_shift(r_dy, 19));
+      const int16_t yw = gs::simd::q_mulhrs(w, w);
+      const int64_t rel = int64_t(s.mx) + q_floor_shift(kappa_dy, 16) - col0;
+      int64_t j = q_floor_shift(rel + 128, 8);
+      j = j < 0 ? 0 : (j > kTileSize - 1 ? kTileSize - 1 : j);
+      c->v_j[ly] = q_sat16(q_round_shift(int64_t(s.s) * (rel - j * 256), 19));
+      c->y_w[ly] = yw;
+      c->off[ly] = int16_t(15 - j);
+      ok |= uint32_t(yw <= s.ylim) << ly;
     }
     return ok;
   }
