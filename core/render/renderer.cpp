@@ -23,6 +23,7 @@ namespace {
 constexpr size_t kArenaAlign = 64;
 constexpr size_t kExtraBytes = 64;       // over-read pad after every buffer (GS_EXTRA_BYTES)
 constexpr size_t kProjectGrain = 1024;   // Gaussians per projection chunk
+constexpr size_t kBinRanges = 8;         // most Gaussian ranges binned in parallel
 // Per-tile slot of the pose normal equations (doubles): [0, 21) upper triangle of J^T W J row by
 // row, [21, 27) J^T W r, 27 cost, 28 weight sum, 29 pixel count; padded to 32.
 constexpr int kPoseSlot = 32;
@@ -79,6 +80,17 @@ void sort_tile_keys(uint64_t* keys, uint64_t* tmp, uint32_t n) {
   if (src != keys) std::memcpy(keys, src, sizeof(uint64_t) * n);
 }
 
+// Index of the lowest set bit of a non-zero word.
+inline int lowest_bit(uint64_t bits) {
+#if defined(__GNUC__)
+  return __builtin_ctzll(bits);
+#else
+  int k = 0;
+  while (!(bits & 1)) bits >>= 1, ++k;
+  return k;
+#endif
+}
+
 template <class F>
 void run_parallel(platform::ThreadPool* pool, size_t n, size_t grain, F& f) {
   if (n == 0) return;
@@ -100,6 +112,7 @@ struct Renderer::Impl {
   float *means2d, *conics, *depths, *colors;
   float* records;  // [N, kSplatStride]: each visible Gaussian's splat record, packed once per frame
   int32_t *radii, *rects;
+  uint64_t* tile_masks;  // [N] which tiles of a rect of <= 64 tiles the splat reaches (see reached_tiles)
   float *acc_means2d, *acc_conics, *acc_opacities, *acc_colors;
   float *scratch_v_means, *scratch_v_log_scales, *scratch_v_quats;
   double* chunk_pose;  // [chunks, 6]
@@ -107,7 +120,10 @@ struct Renderer::Impl {
   float* pose_d_conics;   // [N, 3, 6] ... and of the conic
   double* pose_slots;     // [tiles, kPoseSlot] per-tile normal equations
   // per tile
-  uint32_t *tile_offsets, *tile_cursor;  // [tiles + 1]
+  uint32_t* tile_offsets;  // [tiles + 1]
+  uint32_t* range_counts;  // [kBinRanges, tiles] binning: keys per range and tile, then cursors
+  size_t range_visible[kBinRanges];
+  float range_max_depth[kBinRanges];
   // per intersection
   uint64_t* keys;  // (depth bits << 32) | gaussian id, sorted within each tile
   uint64_t* keys_tmp;  // radix-sort scratch, same layout as keys
@@ -138,6 +154,7 @@ struct Renderer::Impl {
     records = c.take<float>(G * simd::kSplatStride);
     radii = c.take<int32_t>(G);
     rects = c.take<int32_t>(G * 4);
+    tile_masks = c.take<uint64_t>(G);
     acc_means2d = c.take<float>(G * 2);
     acc_conics = c.take<float>(G * 3);
     acc_opacities = c.take<float>(G);
@@ -147,7 +164,7 @@ struct Renderer::Impl {
     scratch_v_quats = c.take<float>(G * 4);
     chunk_pose = c.take<double>((G / kProjectGrain + 1) * 6);
     tile_offsets = c.take<uint32_t>(tiles_max + 1);
-    tile_cursor = c.take<uint32_t>(tiles_max + 1);
+    range_counts = c.take<uint32_t>(tiles_max * kBinRanges);
     keys = c.take<uint64_t>(I);
     keys_tmp = c.take<uint64_t>(I);
     splats = c.take<float>(I * simd::kSplatStride);
@@ -235,6 +252,32 @@ struct Renderer::Impl {
       }
     }
     std::memcpy(slot, acc, sizeof(acc));
+  }
+
+  // Bit (ty - rect[1]) * rect width + (tx - rect[0]) set where splat_reaches_tile holds, for a
+  // rect of at most 64 tiles (larger rects are tested again by reached_tiles).
+  uint64_t reached_tile_mask(size_t i) const {
+    return simd::splat_reaches_tiles(means2d + 2 * i, conics + 3 * i, records[i * simd::kSplatStride + simd::kSplatTwoTau],
+                                     rects + 4 * i, pp.width, pp.height);
+  }
+  // Calls f(tile) for every tile Gaussian i is binned to, row by row.
+  template <class F>
+  void reached_tiles(size_t i, F&& f) const {
+    const int32_t* r = rects + 4 * i;
+    const int rw = r[2] - r[0];
+    if (rw * (r[3] - r[1]) <= 64) {
+      const uint64_t row_bits = rw >= 64 ? ~uint64_t(0) : (uint64_t(1) << rw) - 1;
+      const uint64_t mask = tile_masks[i];
+      for (int ty = r[1], shift = 0; ty < r[3]; ++ty, shift += rw)
+        for (uint64_t bits = (mask >> shift) & row_bits; bits != 0; bits &= bits - 1)
+          f(ty * pp.tiles_x + r[0] + lowest_bit(bits));
+      return;
+    }
+    const float two_tau = records[i * simd::kSplatStride + simd::kSplatTwoTau];
+    for (int ty = r[1]; ty < r[3]; ++ty)
+      for (int tx = r[0]; tx < r[2]; ++tx)
+        if (simd::splat_reaches_tile(means2d + 2 * i, conics + 3 * i, two_tau, tx, ty, pp.width, pp.height))
+          f(ty * pp.tiles_x + tx);
   }
 
   void tile_range(int tile, uint32_t* begin, uint32_t* end) const {
@@ -411,68 +454,85 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
       s[simd::kSplatDepth] = m.depths[i];
       simd::splat_support(m.conics + 3 * i, params.opacities[i], s + simd::kSplatTwoTau);
       simd::tile_rect_supported(&pp, m.means2d + 2 * i, m.radii[i], s + simd::kSplatTwoTau, m.rects + 4 * i);
+      m.tile_masks[i] = m.reached_tile_mask(i);
     }
   };
   run_parallel(m.pool, n, kProjectGrain, project);
 
-  // 2. Bin: count intersections per tile, scan, emit keys.
-  std::fill(m.tile_offsets, m.tile_offsets + m.tiles + 1, 0u);
+  // 2. Bin: count intersections per tile, scan, emit keys. The Gaussians are split into
+  // contiguous ranges, counted and emitted in parallel (the tiles each Gaussian reaches were found
+  // in the projection above); a tile's keys are range 0's, then range 1's, ..., so they arrive in
+  // increasing id order as sort_tile_keys needs, whatever the number of ranges.
+  const size_t ranges = std::min<size_t>(kBinRanges, m.pool ? size_t(m.pool->num_threads()) : 1);
+  const size_t tiles = size_t(m.tiles);
+  auto range_begin = [&](size_t r) { return r * n / ranges; };
+  auto count = [&](size_t b, size_t e, int) {
+    for (size_t r = b; r < e; ++r) {
+      uint32_t* c = m.range_counts + r * tiles;
+      std::fill(c, c + tiles, 0u);
+      size_t visible = 0;
+      float max_depth = 0;
+      for (size_t i = range_begin(r); i < range_begin(r + 1); ++i) {
+        if (m.radii[i] == 0) continue;
+        ++visible;
+        max_depth = std::max(max_depth, m.depths[i]);
+        m.reached_tiles(i, [&](int tile) { ++c[tile]; });
+      }
+      m.range_visible[r] = visible;
+      m.range_max_depth[r] = max_depth;
+    }
+  };
+  run_parallel(m.pool, ranges, 1, count);
+  // Scan: tile_offsets[tile] = keys of the tiles before; each range's count becomes its cursor.
   size_t visible = 0;
+  for (size_t r = 0; r < ranges; ++r) visible += m.range_visible[r];
   uint64_t total = 0;  // 64-bit: N x tiles can exceed a 32-bit size_t before the capacity check
-  for (size_t i = 0; i < n; ++i) {
-    if (m.radii[i] == 0) continue;
-    ++visible;
-    const int32_t* r = m.rects + 4 * i;
-    const float two_tau = m.records[i * simd::kSplatStride + simd::kSplatTwoTau];
-    for (int ty = r[1]; ty < r[3]; ++ty)
-      for (int tx = r[0]; tx < r[2]; ++tx)
-        if (simd::splat_reaches_tile(m.means2d + 2 * i, m.conics + 3 * i, two_tau, tx, ty, pp.width, pp.height)) {
-          ++m.tile_offsets[ty * pp.tiles_x + tx + 1];
-          ++total;
-        }
+  for (size_t tile = 0; tile < tiles; ++tile) {
+    m.tile_offsets[tile] = uint32_t(total);
+    for (size_t r = 0; r < ranges; ++r) {
+      uint32_t& c = m.range_counts[r * tiles + tile];
+      const uint32_t k = c;
+      c = uint32_t(total);  // wraps only when total exceeds the capacity (< 2^32), refused below
+      total += k;
+    }
   }
+  m.tile_offsets[tiles] = uint32_t(total);
   stats_.visible = visible;
   stats_.isects = size_t(std::min<uint64_t>(total, SIZE_MAX));
   if (total > uint64_t(capacity_.max_isects))
     return capacity_exceeded(std::to_string(total) + " Gaussian-tile intersections exceed the planned " +
                              std::to_string(capacity_.max_isects));
-  for (int tile = 0; tile < m.tiles; ++tile) m.tile_offsets[tile + 1] += m.tile_offsets[tile];
-  std::memcpy(m.tile_cursor, m.tile_offsets, sizeof(uint32_t) * size_t(m.tiles + 1));
-  for (size_t i = 0; i < n; ++i) {
-    if (m.radii[i] == 0) continue;
-    uint32_t depth_bits;
-    std::memcpy(&depth_bits, m.depths + i, 4);  // depth > near plane > 0: float bits are monotonic
-    const uint64_t key = (uint64_t(depth_bits) << 32) | uint64_t(i);
-    const int32_t* r = m.rects + 4 * i;
-    const float two_tau = m.records[i * simd::kSplatStride + simd::kSplatTwoTau];
-    for (int ty = r[1]; ty < r[3]; ++ty)
-      for (int tx = r[0]; tx < r[2]; ++tx)
-        if (simd::splat_reaches_tile(m.means2d + 2 * i, m.conics + 3 * i, two_tau, tx, ty, pp.width, pp.height))
-          m.keys[m.tile_cursor[ty * pp.tiles_x + tx]++] = key;
-  }
-  m.num_isects = size_t(total);
-
-  // 2b. Fixed point: each visible Gaussian's record becomes its integer record in place (binning,
-  // the last reader of the float fields, is done; a QSplat fills a float record's slot).
+  // Fixed point: each visible Gaussian's record becomes its integer record in place, in the emit
+  // pass right after its keys (binning is the last reader of the float fields; a QSplat fills a
+  // float record's slot). Depth is stored relative to the farthest visible Gaussian.
+  float depth_scale = 0;
   if (options.fixed_point) {
-    float depth_scale = 0;
-    for (size_t i = 0; i < n; ++i)
-      if (m.radii[i] != 0) depth_scale = std::max(depth_scale, m.depths[i]);
+    for (size_t r = 0; r < ranges; ++r) depth_scale = std::max(depth_scale, m.range_max_depth[r]);
     if (!(depth_scale > 0)) depth_scale = 1;
     m.qrp.width = W;
     m.qrp.height = H;
     for (int c = 0; c < 3; ++c) m.qrp.background[c] = simd::q15_from_unit(options.background[c]);
     m.qrp.depth_scale = depth_scale;
-    auto to_fixed = [&](size_t b, size_t e, int) {
-      for (size_t i = b; i < e; ++i) {
-        if (m.radii[i] == 0) continue;
-        simd::QSplat q;
-        simd::qsplat_from_record(m.records + i * simd::kSplatStride, depth_scale, &q);
-        std::memcpy(m.records + i * simd::kSplatStride, &q, sizeof(q));
-      }
-    };
-    run_parallel(m.pool, n, kProjectGrain, to_fixed);
   }
+  auto emit = [&](size_t b, size_t e, int) {
+    for (size_t r = b; r < e; ++r) {
+      uint32_t* cursor = m.range_counts + r * tiles;
+      for (size_t i = range_begin(r); i < range_begin(r + 1); ++i) {
+        if (m.radii[i] == 0) continue;
+        uint32_t depth_bits;
+        std::memcpy(&depth_bits, m.depths + i, 4);  // depth > near plane > 0: float bits are monotonic
+        const uint64_t key = (uint64_t(depth_bits) << 32) | uint64_t(i);
+        m.reached_tiles(i, [&](int tile) { m.keys[cursor[tile]++] = key; });
+        if (options.fixed_point) {
+          simd::QSplat q;
+          simd::qsplat_from_record(m.records + i * simd::kSplatStride, depth_scale, &q);
+          std::memcpy(m.records + i * simd::kSplatStride, &q, sizeof(q));
+        }
+      }
+    }
+  };
+  run_parallel(m.pool, ranges, 1, emit);
+  m.num_isects = size_t(total);
 
   // 3. Per tile: sort by (depth, id), copy the records in that order, blend.
   auto raster = [&](size_t b, size_t e, int) {

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <iterator>
 #include <random>
 #include <vector>
 
@@ -121,6 +122,49 @@ GS_SIMD_TEST_CASE(qraster_hard, "fixed-point raster kernels: saturated tiles, hu
     for (uint64_t seed = 0; seed < 4; ++seed) check_tile(kt, 48, 48, 1, 1, 90, 3.0f, 0.02f, k, 30 + seed + 10 * uint64_t(k));
 }
 
+// Integer records built directly, over the whole documented range of each field rather than what
+// the float conversion produces: centres up to 4096 px away, |kappa| up to 2^14, s and r from 0 to
+// 2^25, any ylim, opacity and extents. The kernels compute a splat's row values in int32 lanes when
+// its row centres are within 128 px of the tile and in int64 otherwise; both sides of that split,
+// and of the saturations inside it, must give the reference's bits.
+GS_SIMD_TEST_CASE(qraster_integer_records, "fixed-point raster kernels are bit-exact on integer records over the full field ranges") {
+  for (uint64_t seed = 0; seed < 24; ++seed) {
+    std::mt19937_64 rng(900 + seed);
+    auto pick = [&](int64_t lo, int64_t hi) { return std::uniform_int_distribution<int64_t>(lo, hi)(rng); };
+    const int count = 40 + int(seed * 5);
+    std::vector<QSplat> q(static_cast<size_t>(count));
+    for (QSplat& r : q) {
+      const int64_t reach = seed % 3 == 0 ? (int64_t(1) << 20) : (seed % 3 == 1 ? (int64_t(1) << 15) : (int64_t(1) << 13));
+      r.mx = int32_t(24 * 256 + pick(-reach, reach));  // around tile (1, 1)
+      r.my = int32_t(24 * 256 + pick(-reach, reach));
+      const int kind = int(pick(0, 4));
+      r.kappa = int32_t(kind == 0 ? pick(-(int64_t(1) << 30), int64_t(1) << 30) : pick(-(int64_t(1) << 17), int64_t(1) << 17));
+      r.s = int32_t(kind == 1 ? pick(0, 64) : (kind == 4 ? pick(0, int64_t(1) << 17) : pick(0, int64_t(1) << 25)));
+      r.r = int32_t(kind == 2 || kind == 4 ? pick(0, 64) : pick(0, int64_t(1) << 25));
+      if (kind == 4) {  // a wide splat whose row centres are about 128 px from column 0: either side of the int32 split
+        r.mx = int32_t(16 * 256 + 128 + (pick(0, 1) ? 1 : -1) * ((int64_t(1) << 15) + pick(-600, 600)));
+        r.kappa = int32_t(pick(-2000, 2000));
+        r.ext_x = int32_t(pick(int64_t(1) << 15, int64_t(1) << 16));
+      }
+      r.ylim = int32_t(pick(-2, 11349));
+      r.opacity = int32_t(pick(0, 32767));
+      for (int32_t& c : r.rgb) c = int32_t(pick(0, 32767));
+      r.depth = int32_t(pick(0, 32767));
+      if (kind != 4) r.ext_x = int32_t(pick(-1, int64_t(1) << 16));
+      r.ext_y = int32_t(pick(-1, int64_t(1) << 16));
+    }
+    CAPTURE(seed);
+    const gs::simd::QRasterParams p = qparams(48, 48, 1.0f);
+    Outputs ref(48 * 48), out(48 * 48);
+    gs::simd::qraster_fwd_tile_ref(&p, 1, 1, q.data(), count, ref.rgb.data(), ref.T.data(), ref.last.data(), ref.depth.data());
+    kt->qraster_fwd_tile(&p, 1, 1, q.data(), count, out.rgb.data(), out.T.data(), out.last.data(), out.depth.data());
+    REQUIRE(std::memcmp(out.rgb.data(), ref.rgb.data(), out.rgb.size() * sizeof(float)) == 0);
+    REQUIRE(std::memcmp(out.T.data(), ref.T.data(), out.T.size() * sizeof(float)) == 0);
+    REQUIRE(std::memcmp(out.depth.data(), ref.depth.data(), out.depth.size() * sizeof(float)) == 0);
+    REQUIRE(out.last == ref.last);
+  }
+}
+
 TEST_CASE("fixed-point helpers: mulhrs, saturating adds and the alpha polynomial against exact arithmetic") {
   using namespace gs::simd;
   std::mt19937 rng(5);
@@ -178,4 +222,64 @@ TEST_CASE("fixed-point raster: error budget against the float reference") {
   CHECK(sum_level / double(n) < 0.05);
   CHECK(max_level < 3.0);
   CHECK(double(over_half) < 0.002 * double(n));
+}
+
+// The record conversion rounds with inline forms of std::lround and std::ceil (the libm calls
+// were a fifth of its time); it must equal the plain transcription below on random records and on
+// values at and around halves, negatives, NaN, infinities and the clamps.
+namespace {
+int32_t round_clamp_libm(double v, double lo, double hi) {
+  if (!(v >= lo)) return int32_t(lo);
+  if (v > hi) return int32_t(hi);
+  return int32_t(std::lround(v));
+}
+QSplat qsplat_from_record_libm(const float* rec, float depth_scale) {
+  using namespace gs::simd;
+  const double a = rec[kSplatA], b = rec[kSplatB], c = rec[kSplatC], o = rec[kSplatOpacity];
+  QSplat q{};
+  q.mx = round_clamp_libm(double(rec[kSplatMx]) * 256.0, -2147483647.0, 2147483647.0);
+  q.my = round_clamp_libm(double(rec[kSplatMy]) * 256.0, -2147483647.0, 2147483647.0);
+  const double det = a * c - b * b;
+  const bool usable = a > 0 && det > 0 && o * 255.0 >= 1.0 && rec[kSplatExtX] >= 0 && rec[kSplatExtX] < 1e6f &&
+                      rec[kSplatExtY] < 1e6f;
+  if (usable) {
+    q.kappa = round_clamp_libm(b / a * 65536.0, -1073741824.0, 1073741824.0);
+    q.s = round_clamp_libm(std::sqrt(a / 2) * 16777216.0, 0, 33554432.0);
+    q.r = round_clamp_libm(std::sqrt(std::max(0.0, (c - b * b / a) / 2)) * 16777216.0, 0, 33554432.0);
+    q.ylim = round_clamp_libm(std::log(255.0 * std::min(o, 1.0)) * 2048.0, 0, 32767.0);
+    q.ext_x = round_clamp_libm(std::ceil(double(rec[kSplatExtX]) * 256.0), 0, 268435456.0);
+    q.ext_y = round_clamp_libm(std::ceil(double(rec[kSplatExtY]) * 256.0), 0, 268435456.0);
+  } else {
+    q.ylim = -1;
+    q.ext_x = q.ext_y = -1;
+  }
+  q.opacity = round_clamp_libm(o * kQOne, 0, kQOne);
+  for (int k = 0; k < 3; ++k) q.rgb[k] = round_clamp_libm(double(rec[kSplatR + k]) * kQOne, 0, kQOne);
+  q.depth = depth_scale > 0 ? round_clamp_libm(double(rec[kSplatDepth]) / depth_scale * kQOne, 0, kQOne) : 0;
+  return q;
+}
+}  // namespace
+
+TEST_CASE("qsplat_from_record equals its libm transcription (lround, ceil) on random and edge records") {
+  std::mt19937_64 rng(91);
+  std::uniform_real_distribution<float> u(0, 1);
+  const float specials[] = {0.0f, -0.0f, 0.5f / 256, -0.5f / 256, 1.5f / 256, -1.5f / 256, 2.5f / 256, 1.0f / 512,
+                            -1.0f / 512, 0.49999997f / 256, 1e-30f, -1e-30f, 8388608.5f, -8388608.5f, 1e6f, 9.9e5f,
+                            3e9f, -3e9f, INFINITY, -INFINITY, NAN, 0.5f / 32767, 1.5f / 32767, 1.0f, 1.0000001f};
+  for (int n = 0; n < 200000; ++n) {
+    std::vector<float> f = float_splats(rng, 1, 0, 0, 6.0f, 0.002f, Kind(n % 6));
+    float* r = f.data();
+    if (n % 4 == 0)  // a special value in a random field (centre, colour, opacity, extents, depth)
+      r[std::uniform_int_distribution<int>(0, kSplatStride - 1)(rng)] =
+          specials[std::uniform_int_distribution<size_t>(0, std::size(specials) - 1)(rng)];
+    if (n % 4 == 1)  // exact halves of the Q8 and Q15 grids
+      for (int k : {gs::simd::kSplatMx, gs::simd::kSplatMy}) r[k] = (std::floor(r[k] * 256) + 0.5f) / 256;
+    const float depth_scale = n % 10 == 0 ? 0.0f : 5.0f + 20.0f * u(rng);
+    QSplat got;
+    gs::simd::qsplat_from_record(r, depth_scale, &got);
+    const QSplat want = qsplat_from_record_libm(r, depth_scale);
+    CAPTURE(n);
+    REQUIRE(std::memcmp(&got, &want, sizeof(QSplat)) == 0);
+  }
+  for (float v : specials) CHECK(gs::simd::q15_from_unit(v) == round_clamp_libm(double(v) * 32767, 0, 32767));
 }

@@ -5,6 +5,7 @@
 // never past the end of v_splats. Also the projection kernels on blocks with a tail.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <random>
@@ -164,4 +165,43 @@ GS_SIMD_TEST_CASE(project_tail, "projection kernels match the reference on block
     for (double v : pa) ps = std::max(ps, std::fabs(v));
     for (int k = 0; k < 6; ++k) CHECK(std::fabs(pa[k] - pb[k]) <= 1e-4 * ps);
   }
+}
+
+// Binning tests every tile of a splat's rect in one call (splat_reaches_tiles, the renderer's
+// projection stage); it must give splat_reaches_tile's answer for each tile, bit for bit: small,
+// large, needle-thin and non-positive-definite conics, opacities near 1/255, centres inside,
+// beside and far outside the rect, and rects clipped by a partial last tile column or row.
+TEST_CASE("splat_reaches_tiles agrees with splat_reaches_tile on every tile of the rect") {
+  std::mt19937_64 rng(77);
+  std::uniform_real_distribution<float> u(0, 1);
+  const int32_t width = 101, height = 77;  // 7 x 5 tiles, the last column and row partial
+  size_t tiles = 0, reached = 0;
+  for (int n = 0; n < 20000; ++n) {
+    const float sx = 0.2f + (n % 3 == 0 ? 30.0f : 4.0f) * u(rng), sy = 0.2f + 6.0f * u(rng);
+    const float rho = (n % 7 == 0 ? 0.999f : 0.95f) * (2 * u(rng) - 1);
+    const float cxx = sx * sx, cyy = sy * sy, cxy = rho * sx * sy, det = cxx * cyy - cxy * cxy;
+    float conic[3] = {cyy / det, -cxy / det, cxx / det};
+    if (n % 50 == 0) conic[2] = -conic[2];  // not positive definite: reaches every tile
+    const float mean[2] = {-20 + 140 * u(rng), -20 + 115 * u(rng)};
+    const float opacity = n % 5 == 0 ? (1.0f + 0.02f * (u(rng) - 0.5f)) / 255.0f : u(rng);
+    const float two_tau = opacity * 255.0f >= 1.0f ? 2.0f * std::log(255.0f * opacity) : -1.0f;
+    int32_t rect[4];
+    rect[0] = int32_t(u(rng) * 7), rect[1] = int32_t(u(rng) * 5);
+    rect[2] = std::min(7, rect[0] + 1 + int32_t(u(rng) * 8)), rect[3] = std::min(5, rect[1] + 1 + int32_t(u(rng) * 8));
+    if ((rect[2] - rect[0]) * (rect[3] - rect[1]) > 64) continue;
+    const uint64_t mask = gs::simd::splat_reaches_tiles(mean, conic, two_tau, rect, width, height);
+    int bit = 0;
+    for (int32_t ty = rect[1]; ty < rect[3]; ++ty)
+      for (int32_t tx = rect[0]; tx < rect[2]; ++tx, ++bit) {
+        const bool want = gs::simd::splat_reaches_tile(mean, conic, two_tau, tx, ty, width, height);
+        CAPTURE(n); CAPTURE(tx); CAPTURE(ty);
+        REQUIRE(((mask >> bit) & 1) == uint64_t(want));
+        ++tiles;
+        reached += want ? 1 : 0;
+      }
+    REQUIRE((bit == 64 || (mask >> bit) == 0));
+  }
+  MESSAGE("splat_reaches_tiles: " << tiles << " tiles, " << reached << " reached");
+  CHECK(reached > tiles / 20);  // both answers are common (about 9 % reached)
+  CHECK(reached < tiles);
 }

@@ -3,8 +3,6 @@
 // Everything inline this TU compiles lives in gs::simd::isa_avx512 (gs/simd/isa.h); set before any include.
 #define GS_SIMD_ISA_NS isa_avx512
 #define GS_VARIANT_ARCH xsimd::avx512bw
-// The fixed-point rasteriser keeps one 16-px tile row per register: 16 int16 lanes (AVX2 width).
-#define GS_VARIANT_QARCH xsimd::avx2
 #define GS_VARIANT_NAME "avx512"
 #define GS_VARIANT_TABLE kernel_table_avx512
 #include "variant.inc"

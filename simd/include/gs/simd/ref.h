@@ -111,6 +111,53 @@ inline bool splat_reaches_tile(const T* mean2d, const T* conic, float two_tau, i
   return qmin <= limit;
 }
 
+// splat_reaches_tile for every tile of rect [rect[0], rect[2]) x [rect[1], rect[3]) of at most 64
+// tiles, as bit (ty - rect[1]) * (rect[2] - rect[0]) + (tx - rect[0]). The same double operations
+// in the same order as splat_reaches_tile (so the same bits; the build sets -ffp-contract=off),
+// with the edge terms of each tile column and row (and their divisions) computed once.
+template <class T>
+inline uint64_t splat_reaches_tiles(const T* mean2d, const T* conic, float two_tau, const int32_t rect[4], int32_t width,
+                                    int32_t height) {
+  const int32_t rw = rect[2] - rect[0], rh = rect[3] - rect[1];
+  if (rw <= 0 || rh <= 0 || rw * rh > 64) return 0;
+  const double a = double(conic[0]), b = double(conic[1]), c = double(conic[2]);
+  if (!(a > 0.0) || !(c > 0.0) || !(a * c - b * b > 0.0)) return rw * rh == 64 ? ~uint64_t(0) : (uint64_t(1) << (rw * rh)) - 1;
+  const double limit = double(two_tau) * 1.001 + 1e-3;
+  double x0[64], x1[64], bx0[64], bx1[64], y0[64], y1[64], by0[64], by1[64];
+  for (int32_t i = 0; i < rw; ++i) {
+    const int32_t tx = rect[0] + i;
+    x0[i] = tx * kTileSize + 0.5 - double(mean2d[0]);
+    x1[i] = double(scalar::min((tx + 1) * kTileSize, width)) - 0.5 - double(mean2d[0]);
+    bx0[i] = -b * x0[i] / c;
+    bx1[i] = -b * x1[i] / c;
+  }
+  for (int32_t i = 0; i < rh; ++i) {
+    const int32_t ty = rect[1] + i;
+    y0[i] = ty * kTileSize + 0.5 - double(mean2d[1]);
+    y1[i] = double(scalar::min((ty + 1) * kTileSize, height)) - 0.5 - double(mean2d[1]);
+    by0[i] = -b * y0[i] / a;
+    by1[i] = -b * y1[i] / a;
+  }
+  auto clampd = [](double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); };
+  auto q = [&](double ux, double uy) { return a * ux * ux + 2.0 * b * ux * uy + c * uy * uy; };
+  uint64_t mask = 0;
+  for (int32_t j = 0, bit = 0; j < rh; ++j)
+    for (int32_t i = 0; i < rw; ++i, ++bit) {
+      bool reaches;
+      if (x0[i] <= 0.0 && 0.0 <= x1[i] && y0[j] <= 0.0 && 0.0 <= y1[j]) {
+        reaches = limit >= 0.0;
+      } else {
+        double qmin = q(x0[i], clampd(bx0[i], y0[j], y1[j]));
+        qmin = scalar::min(qmin, q(x1[i], clampd(bx1[i], y0[j], y1[j])));
+        qmin = scalar::min(qmin, q(clampd(by0[j], x0[i], x1[i]), y0[j]));
+        qmin = scalar::min(qmin, q(clampd(by1[j], x0[i], x1[i]), y1[j]));
+        reaches = qmin <= limit;
+      }
+      mask |= uint64_t(reaches) << bit;
+    }
+  return mask;
+}
+
 // The tiles a splat is binned to: its 3-sigma tile_rect narrowed to the tiles that hold a pixel
 // inside its alpha >= 1/255 support box (support = [two_tau, ext_x, ext_y], splat_support). Exact
 // with respect to the image: a pixel outside that box gets alpha < 1/255 and is skipped by every
