@@ -521,6 +521,34 @@ bool fit_sim3(const double* x, const double* y, const double* weights, size_t n,
   return true;
 }
 
+bool fit_sim3_trimmed(const double* x, const double* y, size_t n, Sim3* out, size_t* inliers) {
+  Sim3 fit;
+  if (!fit_sim3(x, y, nullptr, n, &fit)) return false;
+  std::vector<double> weights(n, 1.0), residual(n);
+  size_t used = n;
+  for (int round = 0; round < 5; ++round) {
+    for (size_t i = 0; i < n; ++i) {
+      double m[3];
+      transform_point(fit, x + 3 * i, m);
+      residual[i] = std::hypot(m[0] - y[3 * i], m[1] - y[3 * i + 1], m[2] - y[3 * i + 2]);
+    }
+    std::vector<double> sorted = residual;
+    std::nth_element(sorted.begin(), sorted.begin() + std::ptrdiff_t(n / 2), sorted.end());
+    const double limit = 3 * sorted[n / 2];
+    std::vector<double> next(n);
+    size_t kept = 0;
+    for (size_t i = 0; i < n; ++i) kept += (next[i] = residual[i] <= limit ? 1.0 : 0.0) > 0;
+    if (kept == used && next == weights) break;  // the same set: converged
+    if (kept < 3 || 2 * kept < n) break;
+    Sim3 refit;
+    if (!fit_sim3(x, y, next.data(), n, &refit)) break;
+    fit = refit, weights = std::move(next), used = kept;
+  }
+  *out = fit;
+  if (inliers != nullptr) *inliers = used;
+  return true;
+}
+
 void transform_point(const Sim3& T, const double x[3], double y[3]) {
   double r[3];
   matvec(T.R, x, r);
@@ -562,7 +590,7 @@ PoseErrors pose_errors(const Pose* estimated, const Pose* truth, size_t n, doubl
   Eigen::Matrix3d Ra = Eigen::Matrix3d::Identity();
   Eigen::Vector3d ta = Eigen::Vector3d::Zero();
   Sim3 fit;
-  if (align && fit_sim3(ce[0].data(), ct[0].data(), nullptr, n, &fit)) {
+  if (align && fit_sim3_trimmed(ce[0].data(), ct[0].data(), n, &fit)) {
     s = fit.s;
     for (int r = 0; r < 3; ++r)
       for (int k = 0; k < 3; ++k) Ra(r, k) = fit.R[3 * r + k];

@@ -332,7 +332,7 @@ struct TrainSession::Impl {
   // freedoms of joint optimisation): at the dataset poses a test PSNR mixes that offset into the
   // model's error. So test views are evaluated as BARF and the paper do: their dataset poses mapped
   // into the model's frame by the Sim(3) fitted on the training camera centres (true -> now, views
-  // still held back left out), then, with do_register, registered against the model (the pose
+  // still held back left out, outliers trimmed), then, with do_register, registered against the model (the pose
   // only, photometric, full resolution; kept where the fit improved and did not run away). Returns
   // copies of the test views with those poses; report says what was done.
   Expected<std::vector<io::DatasetView>> test_views_in_model_frame(bool do_register, nlohmann::json* report) const {
@@ -348,7 +348,8 @@ struct TrainSession::Impl {
       to.insert(to.end(), b, b + 3);
     }
     pose::Sim3 T;
-    const bool fitted = pose::fit_sim3(from.data(), to.data(), nullptr, from.size() / 3, &T);
+    size_t inliers = 0;
+    const bool fitted = pose::fit_sim3_trimmed(from.data(), to.data(), from.size() / 3, &T, &inliers);
     std::vector<io::DatasetView> out;
     for (const io::DatasetView* v : test_views) {
       out.push_back(*v);
@@ -358,7 +359,8 @@ struct TrainSession::Impl {
     pose::so3_log(T.R, phi);
     *report = {{"frame", fitted ? "Sim(3) of the training camera centres" : "none (the centres are degenerate)"},
                {"sim3_rotation_deg", std::sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]) * 180 / M_PI},
-               {"sim3_scale", T.s}};
+               {"sim3_scale", T.s},
+               {"sim3_views", inliers}};
     if (!do_register) return out;
     int max_w = 0, max_h = 0;
     for (const io::DatasetView& v : out) max_w = std::max(max_w, v.camera.intr.width), max_h = std::max(max_h, v.camera.intr.height);

@@ -811,6 +811,51 @@ TEST_CASE("scene_frame is the mean centre and the largest distance from it") {
   CHECK(std::abs(c[0] - 1) < 1e-6);
 }
 
+TEST_CASE("pose: fit_sim3_trimmed leaves gross outliers out where the plain fit is tilted by them") {
+  gs::pose::Sim3 T;
+  const double phi[3] = {0.1, 0.2, -0.3};
+  gs::pose::so3_exp(phi, T.R);
+  T.s = 0.8;
+  T.t[0] = 1.0, T.t[1] = 0.5, T.t[2] = -0.25;
+  std::vector<double> x, y;
+  for (int i = 0; i < 40; ++i) {  // a ring of cameras with small noise, 4 of them far off
+    const double a = 0.157 * i;
+    const double p[3] = {2 * std::cos(a), 0.3 * std::sin(3 * a), 2 * std::sin(a)};
+    double q[3];
+    gs::pose::transform_point(T, p, q);
+    for (int k = 0; k < 3; ++k) q[k] += 1e-3 * std::sin(7.0 * i + k);
+    if (i % 10 == 3) q[1] += i < 20 ? 0.8 : -0.8;  // half up, half down: they tilt the ring
+    x.insert(x.end(), p, p + 3);
+    y.insert(y.end(), q, q + 3);
+  }
+  auto rotation_off_deg = [&](const gs::pose::Sim3& f) {
+    gs::Pose a, b;
+    for (int k = 0; k < 9; ++k) a.R[k] = float(f.R[k]), b.R[k] = float(T.R[k]);
+    return gs::pose::rotation_error_deg(a, b);
+  };
+  gs::pose::Sim3 plain, trimmed;
+  size_t inliers = 0;
+  REQUIRE(gs::pose::fit_sim3(x.data(), y.data(), nullptr, 40, &plain));
+  REQUIRE(gs::pose::fit_sim3_trimmed(x.data(), y.data(), 40, &trimmed, &inliers));
+  MESSAGE("rotation off by " << rotation_off_deg(plain) << " deg (plain) and " << rotation_off_deg(trimmed) << " deg (trimmed, "
+                             << inliers << " of 40 pairs)");
+  CHECK(rotation_off_deg(plain) > 1.0);
+  CHECK(rotation_off_deg(trimmed) < 0.05);
+  CHECK(inliers >= 30);
+  CHECK(inliers <= 36);
+  CHECK(trimmed.s == doctest::Approx(T.s).epsilon(1e-3));
+  // Without outliers the trimmed fit is the plain one.
+  std::vector<double> clean_y;
+  for (int i = 0; i < 40; ++i) {
+    double q[3];
+    gs::pose::transform_point(T, &x[3 * i], q);
+    clean_y.insert(clean_y.end(), q, q + 3);
+  }
+  REQUIRE(gs::pose::fit_sim3_trimmed(x.data(), clean_y.data(), 40, &trimmed));
+  CHECK(trimmed.s == doctest::Approx(T.s).epsilon(1e-12));
+  for (int k = 0; k < 9; ++k) CHECK(trimmed.R[k] == doctest::Approx(T.R[k]).epsilon(1e-12));
+}
+
 TEST_CASE("pose: fit_sim3 recovers a similarity and transform_pose moves cameras with the world") {
   gs::pose::Sim3 T;
   const double phi[3] = {0.3, -0.5, 0.8};

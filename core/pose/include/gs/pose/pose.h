@@ -83,8 +83,8 @@ struct PoseErrors {
   double ate_rmse = 0;                                   // RMS camera-centre distance, scene units
   std::vector<double> rotation_deg, translation;         // per view
 };
-// align: fit s, R, t (Umeyama with determinant fix) mapping estimated centres onto true centres
-// and apply it to the estimated poses first; needs n >= 3 non-collinear centres, else it falls
+// align: fit s, R, t (Umeyama with determinant fix, outliers trimmed: fit_sim3_trimmed) mapping
+// estimated centres onto true centres and apply it to the estimated poses first; needs n >= 3 non-collinear centres, else it falls
 // back to no alignment and says so in `aligned`. scene_radius > 0 for the fraction.
 PoseErrors pose_errors(const Pose* estimated, const Pose* truth, size_t n, double scene_radius, bool align);
 
@@ -98,6 +98,11 @@ struct Sim3 {
 // with the reflection fix. Returns false (out untouched) when either set is degenerate (coincident
 // or collinear) or n < 3.
 bool fit_sim3(const double* x, const double* y, const double* weights, size_t n, Sim3* out);
+// The same with gross outliers left out: fit on every pair, then refit (at most 5 rounds) on the
+// pairs whose residual |y - T(x)| is at most 3x the median residual (and never on fewer than half of
+// them or than 3), so a camera whose estimate is far off (one never registered) cannot tilt the
+// alignment of the others. inliers: how many pairs the returned fit used. False as fit_sim3.
+bool fit_sim3_trimmed(const double* x, const double* y, size_t n, Sim3* out, size_t* inliers = nullptr);
 // The same camera after the world changes by T: a world-to-camera pose (R, t) becomes
 // (R R_T^T, s t - R R_T^T t_T), with camera units scaled by s so depths stay in world units.
 Pose transform_pose(const Sim3& T, const Pose& pose);
