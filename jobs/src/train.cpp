@@ -332,9 +332,9 @@ struct TrainSession::Impl {
   // freedoms of joint optimisation): at the dataset poses a test PSNR mixes that offset into the
   // model's error. So test views are evaluated as BARF and the paper do: their dataset poses mapped
   // into the model's frame by the Sim(3) fitted on the training camera centres (true -> now, views
-  // still held back left out, outliers trimmed), then, with do_register, registered against the model (the pose
-  // only, photometric, full resolution; kept where the fit improved and did not run away). Returns
-  // copies of the test views with those poses; report says what was done.
+  // still held back left out, outliers trimmed), then, with do_register, registered against the
+  // model (the pose only, photometric, full resolution; kept where the fit improved and did not run
+  // away). Returns copies of the test views with those poses; report says what was done.
   Expected<std::vector<io::DatasetView>> test_views_in_model_frame(bool do_register, nlohmann::json* report) const {
     const std::vector<Pose> now = poses_of(trainer->cameras());
     const std::vector<uint8_t>& held = trainer->held_back();
