@@ -332,10 +332,10 @@ struct TrainSession::Impl {
   // freedoms of joint optimisation): at the dataset poses a test PSNR mixes that offset into the
   // model's error. So test views are evaluated as BARF and the paper do: their dataset poses mapped
   // into the model's frame by the Sim(3) fitted on the training camera centres (true -> now, views
-  // still held back left out, outliers trimmed), then, with do_register, registered against the
-  // model (the pose only, photometric, full resolution; kept where the fit improved and did not run
-  // away). Returns copies of the test views with those poses; report says what was done.
-  Expected<std::vector<io::DatasetView>> test_views_in_model_frame(bool do_register, nlohmann::json* report) const {
+  // still held back left out, outliers trimmed), then registered against the model
+  // (register_test_views). Returns copies of the test views with the mapped poses; report says what
+  // was done.
+  std::vector<io::DatasetView> test_views_in_model_frame(nlohmann::json* report) const {
     const std::vector<Pose> now = poses_of(trainer->cameras());
     const std::vector<uint8_t>& held = trainer->held_back();
     std::vector<double> from, to;
@@ -361,16 +361,21 @@ struct TrainSession::Impl {
                {"sim3_rotation_deg", std::sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]) * 180 / M_PI},
                {"sim3_scale", T.s},
                {"sim3_views", inliers}};
-    if (!do_register) return out;
+    return out;
+  }
+  // Registers each view against the model from its pose (the pose only, photometric, full
+  // resolution) and keeps the result where the fit improved and did not run away; adds how many
+  // moved and by how much to report.
+  Status register_test_views(std::vector<io::DatasetView>* views, nlohmann::json* report) const {
     int max_w = 0, max_h = 0;
-    for (const io::DatasetView& v : out) max_w = std::max(max_w, v.camera.intr.width), max_h = std::max(max_h, v.camera.intr.height);
+    for (const io::DatasetView& v : *views) max_w = std::max(max_w, v.camera.intr.width), max_h = std::max(max_h, v.camera.intr.height);
     pose::RegisterOptions ro;
     std::copy(trainer->options().background.rgb, trainer->options().background.rgb + 3, ro.background);
     Expected<std::unique_ptr<pose::Registrar>> reg = pose::Registrar::create(trainer->model(), max_w, max_h, ro, pool.get(), kernels);
     if (!reg.ok()) return Status(reg.status().code(), "test-view registration: " + reg.status().message());
     int moved = 0;
     double moved_deg = 0;
-    for (io::DatasetView& v : out) {
+    for (io::DatasetView& v : *views) {
       const io::Image8 photo = io::composite_rgb8(v.image, v.mask, ro.background);  // a copy only when masked
       pose::RegisterResult r;
       GS_RETURN_IF_ERROR((*reg)->register_view(photo.pixels.data(), v.camera.intr, v.camera.pose, &r));
@@ -383,7 +388,7 @@ struct TrainSession::Impl {
     }
     (*report)["registered"] = moved;
     (*report)["registration_rotation_mean_deg"] = moved > 0 ? moved_deg / moved : 0.0;
-    return out;
+    return Status::Ok();
   }
   void set_train_poses(const std::vector<Camera>& cams) {
     for (size_t i = 0; i < cams.size(); ++i) dataset.views[train_index[i]].camera.pose = cams[i].pose;
@@ -724,10 +729,8 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     quick.psnr_only = true;
     std::copy(trainer.options().background.rgb, trainer.options().background.rgb + 3, quick.render.background);
     nlohmann::json frame;
-    Expected<std::vector<io::DatasetView>> mapped =
-        a.optimize_poses ? d.test_views_in_model_frame(false, &frame) : Expected<std::vector<io::DatasetView>>(std::vector<io::DatasetView>{});
-    if (!mapped.ok()) return mapped.status();
-    Expected<model::EvalResult> r = model::evaluate_views(trainer, a.optimize_poses ? pointers_to(*mapped) : d.test_views, quick, &pool);
+    const std::vector<io::DatasetView> mapped = a.optimize_poses ? d.test_views_in_model_frame(&frame) : std::vector<io::DatasetView>{};
+    Expected<model::EvalResult> r = model::evaluate_views(trainer, a.optimize_poses ? pointers_to(mapped) : d.test_views, quick, &pool);
     if (!r.ok()) return r.status();
     add_psnr_row(it, r->psnr);
     return Status::Ok();
@@ -743,7 +746,8 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
     std::copy(trainer.options().background.rgb, trainer.options().background.rgb + 3, eo.render.background);
     eo.render_dir = (fs::path(a.out) / "test" / method / "renders").string();
     // Optimised poses: the test views in the model's frame, registered (TrainSession::Impl::
-    // test_views_in_model_frame), with the PSNR at the dataset poses and at the mapped ones beside.
+    // test_views_in_model_frame, register_test_views), with the PSNR at the dataset poses and at the
+    // mapped ones beside.
     nlohmann::json test_pose_report;
     std::vector<io::DatasetView> registered;
     if (a.optimize_poses) {
@@ -753,14 +757,10 @@ Status TrainRunAccess::run(const TrainRunOptions& options, const TrainProgressFn
       quick.render = eo.render;
       Expected<model::EvalResult> at_dataset = model::evaluate_views(trainer, d.test_views, quick, &pool);
       if (!at_dataset.ok()) return at_dataset.status();
-      nlohmann::json mapped_report;
-      Expected<std::vector<io::DatasetView>> mapped = d.test_views_in_model_frame(false, &mapped_report);
-      if (!mapped.ok()) return mapped.status();
-      Expected<model::EvalResult> at_mapped = model::evaluate_views(trainer, pointers_to(*mapped), quick, &pool);
+      registered = d.test_views_in_model_frame(&test_pose_report);
+      Expected<model::EvalResult> at_mapped = model::evaluate_views(trainer, pointers_to(registered), quick, &pool);
       if (!at_mapped.ok()) return at_mapped.status();
-      Expected<std::vector<io::DatasetView>> reg = d.test_views_in_model_frame(true, &test_pose_report);
-      if (!reg.ok()) return reg.status();
-      registered = std::move(reg).value();
+      GS_RETURN_IF_ERROR(d.register_test_views(&registered, &test_pose_report));
       test_pose_report["PSNR_at_dataset_poses"] = at_dataset->psnr;
       test_pose_report["PSNR_at_mapped_poses"] = at_mapped->psnr;
     }
