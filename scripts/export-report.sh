@@ -17,23 +17,11 @@ cmake --preset release >/dev/null
 cmake --build --preset release -j"${GS_JOBS:-2}" --target hbgs
 hbgs=build/release/bin/hbgs
 mkdir -p "$out"
-declare -A given=()
-for kv in ${HBGS_REPORT_RUNS:-}; do given[${kv%%=*}]=${kv#*=}; done
+source scripts/report-scenes.sh
 
 rows=()
-for scene in snowmiku_plush fox synth; do
-  if [[ $scene == synth ]]; then
-    dataset=out/on_device/synth_scene
-    [[ -d $dataset ]] || "$hbgs" synth --out "$dataset" --quiet
-  else
-    dataset=../shared/data/$scene
-    if [[ ! -d $dataset ]]; then echo "export-report: $dataset not found, skipped" >&2; continue; fi
-  fi
-  run=${given[$scene]:-out/on_device/$scene/run}
-  if [[ ! -f $run/model.hbgs ]]; then
-    echo "== $scene: training 3,000 iterations"
-    "$hbgs" train "$dataset" --out "$run" --iterations 3000 --threads "$threads" --quiet --force
-  fi
+for scene in "${report_scenes[@]}"; do
+  report_scene "$scene" out/on_device/synth_scene "out/on_device/$scene/run" || continue
   w=$out/$scene
   mkdir -p "$w"
   for sh in 0 1 2 3; do

@@ -17,23 +17,11 @@ cmake --build --preset release -j"${GS_JOBS:-2}" --target hbgs hbgs-device
 hbgs=build/release/bin/hbgs
 dev=build/release/bin/hbgs-device
 mkdir -p "$out"
-declare -A given=()
-for kv in ${HBGS_REPORT_RUNS:-}; do given[${kv%%=*}]=${kv#*=}; done
+source scripts/report-scenes.sh
 
 rows=()
-for scene in snowmiku_plush fox synth; do
-  if [[ $scene == synth ]]; then
-    dataset=$out/synth_scene
-    [[ -d $dataset ]] || "$hbgs" synth --out "$dataset" --quiet
-  else
-    dataset=../shared/data/$scene
-    if [[ ! -d $dataset ]]; then echo "on-device-report: $dataset not found, skipped" >&2; continue; fi
-  fi
-  run=${given[$scene]:-$out/$scene/run}
-  if [[ ! -f $run/model.hbgs ]]; then
-    echo "== $scene: training 3,000 iterations"
-    "$hbgs" train "$dataset" --out "$run" --iterations 3000 --threads "$threads" --quiet --force
-  fi
+for scene in "${report_scenes[@]}"; do
+  report_scene "$scene" "$out/synth_scene" "$out/$scene/run" || continue
   w=$out/$scene
   mkdir -p "$w"
   "$hbgs" compact "$run" --out "$w/model.hbgc" --dataset "$dataset" --no-eval --threads "$threads" >/dev/null
