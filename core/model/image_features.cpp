@@ -23,6 +23,14 @@ void sample_bilinear(const uint8_t* rgb, int w, int h, double u, double v, float
   for (int k = 0; k < 3; ++k) out[k] = float(c[k] / 255.0);
 }
 
+// How well a view sees a point at camera coordinates xc (lower is better; the reference code's rule):
+// the distance from the centre, |xc|, over 200, plus 1.1 minus the cosine to the optical axis,
+// xc_z / |xc|.
+double view_score(const double xc[3]) {
+  const double dist = std::sqrt(xc[0] * xc[0] + xc[1] * xc[1] + xc[2] * xc[2]);
+  return dist / 200.0 + 1.1 - xc[2] / (dist + 1e-6);
+}
+
 }  // namespace
 
 Status ImageFeatureBank::init(const std::vector<const Camera*>& cameras, const std::vector<const io::Image8*>& images,
@@ -73,9 +81,7 @@ int ImageFeatureBank::best_view(const float* p) const {
     const Camera& cam = *cameras_[j];
     double xc[3], u, v;
     if (!project_inside(cam, p, xc, &u, &v)) continue;
-    // Distance from the centre equals |xc|; the cosine to the optical axis is xc_z / |xc|.
-    const double dist = std::sqrt(xc[0] * xc[0] + xc[1] * xc[1] + xc[2] * xc[2]);
-    const double score = dist / 200.0 + 1.1 - xc[2] / (dist + 1e-6);
+    const double score = view_score(xc);
     if (best < 0 || score < best_score) {
       best = int(j);
       best_score = score;
@@ -153,8 +159,7 @@ void ImageFeatureBank::compute_one_visible(const float* p, float* raw) const {
   for (size_t j = 0; j < cameras_.size(); ++j) {
     double xc[3], u, v;
     if (!project_inside(*cameras_[j], p, xc, &u, &v) || !visible_in(j, xc, u, v)) continue;
-    const double dist = std::sqrt(xc[0] * xc[0] + xc[1] * xc[1] + xc[2] * xc[2]);
-    const double sc = dist / 200.0 + 1.1 - xc[2] / (dist + 1e-6);
+    const double sc = view_score(xc);
     int at = n < kVisibleViews ? n++ : kVisibleViews;  // insertion into the sorted short list
     while (at > 0 && score[at - 1] > sc) {
       if (at < kVisibleViews) best[at] = best[at - 1], score[at] = score[at - 1], uv[at][0] = uv[at - 1][0], uv[at][1] = uv[at - 1][1];

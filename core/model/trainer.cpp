@@ -273,6 +273,14 @@ struct Trainer::Impl {
     }
   }
 
+  // View v takes a pose found by registration: its Adam state starts again.
+  void adopt_pose(size_t v, const Pose& pose) {
+    view_cameras[v].pose = pose;
+    std::fill(pose_m.begin() + std::ptrdiff_t(6 * v), pose_m.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
+    std::fill(pose_v.begin() + std::ptrdiff_t(6 * v), pose_v.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
+    pose_steps[v] = 0;
+  }
+
   // Registers every held-back view against the current model; a converged one gets that pose
   // (Adam state reset) and joins training. Returns how many joined.
   Status register_held(int it, int* released) {
@@ -283,10 +291,7 @@ struct Trainer::Impl {
       pose::RegisterResult r;
       GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
       if (!r.converged()) continue;
-      view_cameras[v].pose = r.pose;
-      std::fill(pose_m.begin() + std::ptrdiff_t(6 * v), pose_m.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
-      std::fill(pose_v.begin() + std::ptrdiff_t(6 * v), pose_v.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
-      pose_steps[v] = 0;
+      adopt_pose(v, r.pose);
       held[v] = 0;
       ++*released;
     }
@@ -322,10 +327,7 @@ struct Trainer::Impl {
       GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
       if (!(r.final_rmse < r.initial_rmse) || r.verdict == pose::RegisterVerdict::kDiverged || r.verdict == pose::RegisterVerdict::kNothingVisible)
         continue;
-      view_cameras[v].pose = r.pose;
-      std::fill(pose_m.begin() + std::ptrdiff_t(6 * v), pose_m.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
-      std::fill(pose_v.begin() + std::ptrdiff_t(6 * v), pose_v.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
-      pose_steps[v] = 0;
+      adopt_pose(v, r.pose);
       ++*moved;
     }
     return Status::Ok();
