@@ -5,7 +5,8 @@
 // int8 decoder), and the Gaussian renderer's forward (project, bin, sort, blend) is timed apart from
 // the anchor decoding. Prints median ms per view,
 // the int/float speed ratio, and the PSNR of each path against the dataset images (8-bit) and of
-// the fixed-point renders against the float ones.
+// the fixed-point renders against the float ones (gs::metrics::psnr_u8, means over the views: one
+// view the two paths render identically makes the agreement "inf").
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -16,6 +17,7 @@
 
 #include "bench_common.h"
 #include "gs/jobs/run_folder.h"
+#include "gs/metrics/image_metrics.h"
 #include "gs/model/trainer.h"
 #include "gs/platform/thread_pool.h"
 
@@ -31,13 +33,6 @@ std::vector<uint8_t> to_u8(const std::vector<float>& rgb, size_t n) {
   std::vector<uint8_t> o(n);
   for (size_t i = 0; i < n; ++i) o[i] = uint8_t(std::lround(std::clamp(rgb[i], 0.0f, 1.0f) * 255.0f));
   return o;
-}
-
-double psnr_u8(const uint8_t* a, const uint8_t* b, size_t n) {
-  double se = 0;
-  for (size_t i = 0; i < n; ++i) se += (double(a[i]) - double(b[i])) * (double(a[i]) - double(b[i]));
-  const double mse = se / double(n) / (255.0 * 255.0);
-  return mse > 0 ? 10 * std::log10(1 / mse) : 99.0;
 }
 
 }  // namespace
@@ -120,10 +115,10 @@ int main(int argc, char** argv) {
               dec[fixed].push_back(renderer.last_decode_ms());
             } else {
               out[fixed] = to_u8(rgb, n);
-              psnr[fixed] += psnr_u8(out[fixed].data(), v->image.pixels.data(), n) / double(views.size());
+              psnr[fixed] += gs::metrics::psnr_u8(out[fixed].data(), v->image.pixels.data(), n) / double(views.size());
             }
           }
-          if (rep < 0) agree += psnr_u8(out[0].data(), out[1].data(), n) / double(views.size());
+          if (rep < 0) agree += gs::metrics::psnr_u8(out[0].data(), out[1].data(), n) / double(views.size());
         }
       }
       const double f = median(fwd[0]), q = median(fwd[1]);

@@ -18,6 +18,7 @@
 #include "gs/io/colmap.h"             // gs::io::load_dataset: pinhole cameras, images, SfM points
 #include "gs/io/image.h"              // gs::io::image_from_float_rgb, write_png
 #include "gs/io/splat_formats.h"      // gs::io::read_gaussians (any splat format)
+#include "gs/metrics/image_metrics.h"  // gs::metrics::psnr_u8
 #include "gs/model/hybrid_model.h"    // gs::model::load_model
 #include "gs/model/trainer.h"         // gs::model::ModelRenderer
 #include "gs/platform/thread_pool.h"  // gs::platform::ThreadPool
@@ -35,14 +36,10 @@ int fail(const std::string& what, const gs::Status& st) {
   return 1;
 }
 
+// PSNR of the render against the photo (+inf when identical, NaN when the sizes differ).
 double psnr(const gs::io::Image8& a, const gs::io::Image8& b) {
-  if (a.pixels.size() != b.pixels.size() || a.pixels.empty()) return NAN;
-  double sse = 0;
-  for (size_t i = 0; i < a.pixels.size(); ++i) {
-    const double d = double(a.pixels[i]) - double(b.pixels[i]);
-    sse += d * d;
-  }
-  return sse == 0 ? INFINITY : 10 * std::log10(255.0 * 255.0 * double(a.pixels.size()) / sse);
+  if (a.pixels.size() != b.pixels.size()) return NAN;
+  return gs::metrics::psnr_u8(a.pixels.data(), b.pixels.data(), a.pixels.size());
 }
 
 // Renders a Gaussian cloud (a splat file or the dataset's points) with the differentiable

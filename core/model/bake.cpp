@@ -10,6 +10,7 @@
 #include <Eigen/Dense>
 
 #include "float_backend.h"
+#include "gs/metrics/image_metrics.h"
 #include "gs/model/decode.h"
 #include "gs/model/trainer.h"
 #include "gs/optim/adam.h"
@@ -23,12 +24,6 @@
 
 namespace gs::model {
 namespace {
-
-double psnr_of(const float* a, const float* b, size_t n) {
-  double se = 0;
-  for (size_t i = 0; i < n; ++i) se += (double(a[i]) - double(b[i])) * (double(a[i]) - double(b[i]));
-  return se > 0 ? -10.0 * std::log10(se / double(n)) : 99.0;
-}
 
 // Stage 1 accumulators per anchor row (normal matrix of the SH basis over the views that see it)
 // and per candidate (right-hand sides, opacity and shape sums).
@@ -302,7 +297,7 @@ Expected<GaussianCloud> bake_model(const HybridModel& model, const std::vector<C
     for (size_t i = 0; i < cameras.size(); ++i) {
       load_target(i);
       GS_RETURN_IF_ERROR(d.forward(cameras[i], o.background, kt, pool));
-      sum += psnr_of(d.rgb.data(), d.target.data(), offset[i + 1] - offset[i]);
+      sum += metrics::psnr_f32(d.rgb.data(), d.target.data(), offset[i + 1] - offset[i]);
     }
     return sum / double(cameras.size());
   };

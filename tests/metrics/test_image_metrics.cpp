@@ -86,6 +86,50 @@ TEST_CASE("psnr: known MSE") {
   CHECK(psnr_u8(a.data(), c.data(), 10, 10) == doctest::Approx(20.0 * std::log10(255.0)).epsilon(1e-12));
 }
 
+TEST_CASE("psnr: the formula, its convention at zero error, and NaN for no values") {
+  CHECK(psnr_from_sse(1.0, 100.0) == doctest::Approx(20.0).epsilon(1e-15));  // MSE 0.01
+  CHECK(psnr_from_sse(3.0, 3.0) == 0.0);                                      // MSE 1 (peak error everywhere)
+  const double inf = psnr_from_sse(0.0, 12.0);
+  CHECK(std::isinf(inf));
+  CHECK(inf > 0);
+  CHECK(inf == std::numeric_limits<double>::infinity());
+  CHECK(std::isnan(psnr_from_sse(0.0, 0.0)));
+  CHECK(std::isnan(psnr_from_sse(1.0, -1.0)));
+  CHECK(std::isnan(psnr_from_sse(std::nan(""), 3.0)));
+}
+
+TEST_CASE("psnr: the value-count variants equal the [H, W, 3] ones bit for bit") {
+  const auto a = random_image(13, 7, 3), b = add_noise(a, 6.0, 4);
+  CHECK(psnr_u8(a.data(), b.data(), a.size()) == psnr_u8(a.data(), b.data(), 13, 7));
+  const std::vector<float> fa(a.begin(), a.end()), fb(b.begin(), b.end());
+  std::vector<float> ua(fa.size()), ub(fb.size());
+  for (size_t i = 0; i < fa.size(); ++i) ua[i] = fa[i] / 255.0f, ub[i] = fb[i] / 255.0f;
+  CHECK(psnr_f32(ua.data(), ub.data(), ua.size()) == psnr_f32(ua.data(), ub.data(), 13, 7));
+  // Any layout: 5 values, one off by 51 -> MSE = 0.2^2 / 5 = 0.008 -> 20.969 dB.
+  const uint8_t p[5] = {0, 10, 20, 30, 40}, q[5] = {0, 10, 71, 30, 40};
+  CHECK(psnr_u8(p, q, 5) == doctest::Approx(-10.0 * std::log10(0.008)).epsilon(1e-12));
+  CHECK(std::isinf(psnr_u8(p, p, 5)));
+  CHECK(std::isnan(psnr_u8(p, q, size_t(0))));
+}
+
+TEST_CASE("psnr inside a mask: coverage weights, nothing covered gives NaN") {
+  // 2 x 1 image: pixel 0 wrong by 255 in red only, pixel 1 exact.
+  const uint8_t a[6] = {0, 0, 0, 9, 9, 9}, b[6] = {255, 0, 0, 9, 9, 9};
+  const uint8_t all[2] = {255, 255}, first[2] = {255, 0}, second[2] = {0, 255}, none[2] = {0, 0};
+  // Full mask: the plain PSNR (MSE 1/6).
+  CHECK(psnr_u8_masked(a, b, all, 2, 1) == doctest::Approx(psnr_u8(a, b, 2, 1)).epsilon(1e-12));
+  CHECK(psnr_u8_masked(a, b, all, 2, 1) == doctest::Approx(10.0 * std::log10(6.0)).epsilon(1e-12));
+  // Only the wrong pixel: MSE 1/3.
+  CHECK(psnr_u8_masked(a, b, first, 2, 1) == doctest::Approx(10.0 * std::log10(3.0)).epsilon(1e-12));
+  // Only the exact pixel: no error inside the mask.
+  CHECK(std::isinf(psnr_u8_masked(a, b, second, 2, 1)));
+  // A third of the wrong pixel (85 / 255), all of the exact one: sse 1/3 over weight 3 (1/3 + 1) = 4.
+  const uint8_t third[2] = {85, 255};
+  CHECK(psnr_u8_masked(a, b, third, 2, 1) == doctest::Approx(10.0 * std::log10(12.0)).epsilon(1e-12));
+  CHECK(std::isnan(psnr_u8_masked(a, b, none, 2, 1)));
+  CHECK(std::isnan(psnr_u8_masked(a, b, nullptr, 2, 1)));
+}
+
 TEST_CASE("psnr and ssim: empty sizes give NaN") {
   uint8_t px[3] = {0, 0, 0};
   CHECK(std::isnan(psnr_u8(px, px, 0, 1)));
