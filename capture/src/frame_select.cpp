@@ -6,6 +6,8 @@
 #include <cmath>
 #include <string>
 
+#include "gs/io/box_filter.h"
+
 namespace gs::capture {
 namespace {
 
@@ -18,35 +20,28 @@ float grey_of(const uint8_t* p) { return 0.299f * float(p[0]) + 0.587f * float(p
 // measured at the same scale for every frame of a video.
 int32_t sharp_factor(int32_t width) { return std::max<int32_t>(1, (width + kSharpWidth - 1) / kSharpWidth); }
 
+// Mean grey of f x f blocks of RGB rows `stride` bytes apart (float sums; remainder dropped).
 void box_grey(const uint8_t* rgb, int32_t width, int32_t height, int32_t stride, int32_t f, float* out, int32_t* ow,
               int32_t* oh) {
   const int32_t w = width / f, h = height / f;
   const float norm = 1.0f / float(f * f);
-  for (int32_t y = 0; y < h; ++y)
-    for (int32_t x = 0; x < w; ++x) {
-      float sum = 0;
-      for (int32_t dy = 0; dy < f; ++dy) {
-        const uint8_t* row = rgb + size_t(y * f + dy) * size_t(stride) + size_t(x * f) * 3;
-        for (int32_t dx = 0; dx < f; ++dx) sum += grey_of(row + 3 * dx);
-      }
-      out[size_t(y) * size_t(w) + size_t(x)] = sum * norm;
-    }
+  io::box_filter<float>(
+      width, height, f, w, h, [&](float& sum, int x, int y) { sum += grey_of(rgb + size_t(y) * size_t(stride) + size_t(x) * 3); },
+      [&](size_t i, float sum) { out[i] = sum * norm; });
   *ow = w;
   *oh = h;
 }
 
 // Area-averaged kThumbW x kThumbH thumbnail of the grey image, values 0..1.
 void thumbnail(const float* grey, int32_t w, int32_t h, float* thumb) {
-  for (int32_t ty = 0; ty < kThumbH; ++ty)
-    for (int32_t tx = 0; tx < kThumbW; ++tx) {
-      const int32_t x0 = tx * w / kThumbW, x1 = std::max(x0 + 1, (tx + 1) * w / kThumbW);
-      const int32_t y0 = ty * h / kThumbH, y1 = std::max(y0 + 1, (ty + 1) * h / kThumbH);
-      double sum = 0;
-      int n = 0;
-      for (int32_t y = y0; y < std::min(y1, h); ++y)
-        for (int32_t x = x0; x < std::min(x1, w); ++x, ++n) sum += grey[size_t(y) * size_t(w) + size_t(x)];
-      thumb[ty * kThumbW + tx] = n > 0 ? float(sum / n / 255.0) : 0.0f;
-    }
+  struct Mean {
+    double sum;
+    int n;
+  };
+  io::box_filter<Mean>(
+      io::SpanAxis{w, kThumbW}, io::SpanAxis{h, kThumbH}, kThumbW, kThumbH,
+      [&](Mean& m, int x, int y) { m.sum += grey[size_t(y) * size_t(w) + size_t(x)], ++m.n; },
+      [&](size_t i, const Mean& m) { thumb[i] = m.n > 0 ? float(m.sum / m.n / 255.0) : 0.0f; });
 }
 
 double median_of(std::vector<double>& v) {

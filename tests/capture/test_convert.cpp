@@ -19,6 +19,7 @@
 
 #include "gs/capture/convert.h"
 #include "gs/capture/frame.h"
+#include "gs/metrics/image_metrics.h"
 #include "gs/simd/convert.h"
 #include "gs/simd/kernel_table.h"
 #include "support/simd_isa.h"
@@ -190,10 +191,8 @@ void rgb_to_yuv(const uint8_t* p, double* y, double* u, double* v) {
 }
 
 double psnr(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b) {
-  double se = 0;
-  for (size_t i = 0; i < a.size(); ++i) se += double(int(a[i]) - int(b[i])) * double(int(a[i]) - int(b[i]));
-  const double mse = se / double(a.size());
-  return mse == 0 ? 99.0 : 10 * std::log10(255.0 * 255.0 / mse);
+  REQUIRE(a.size() == b.size());
+  return gs::metrics::psnr_u8(a.data(), b.data(), a.size());
 }
 
 TEST_CASE("RGB to YUV to RGB round trip through the reference keeps a smooth image") {

@@ -12,6 +12,7 @@
 
 #include "gs/camera.h"
 #include "gs/gaussians.h"
+#include "gs/metrics/image_metrics.h"
 #include "gs/render.h"
 #include "gs/scene_init.h"
 
@@ -72,16 +73,13 @@ inline std::vector<float> render_cloud(const GaussianCloud& cloud, const Camera&
   return rgb;
 }
 
-// PSNR in dB of two images with values clamped to [0, 1]; +inf when identical.
+// PSNR in dB of two images with values clamped to [0, 1] (gs::metrics::psnr_f32: +inf when
+// identical); -1 when the sizes differ or they are empty.
 inline double psnr(const std::vector<float>& a, const std::vector<float>& b) {
   if (a.size() != b.size() || a.empty()) return -1;
-  double sse = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    const double d = double(std::clamp(a[i], 0.0f, 1.0f)) - double(std::clamp(b[i], 0.0f, 1.0f));
-    sse += d * d;
-  }
-  if (sse == 0) return INFINITY;
-  return 10.0 * std::log10(double(a.size()) / sse);
+  std::vector<float> ca(a.size()), cb(b.size());
+  for (size_t i = 0; i < a.size(); ++i) ca[i] = std::clamp(a[i], 0.0f, 1.0f), cb[i] = std::clamp(b[i], 0.0f, 1.0f);
+  return metrics::psnr_f32(ca.data(), cb.data(), ca.size());
 }
 
 inline double sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }

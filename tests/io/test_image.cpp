@@ -4,9 +4,12 @@
 #define STBI_WRITE_NO_STDIO
 #include <stb_image_write.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "gs/io/image.h"
 #include "gs/platform/file.h"
@@ -237,6 +240,94 @@ TEST_CASE("resize_area: non-integer ratios keep constants and the mean") {
   // Area weights sum to the same total; only per-pixel rounding (<= 0.5) moves the mean.
   CHECK(std::abs(m0 / 600.0 - m1 / 42.0) <= 0.5);
   CHECK(resize_area(src, 0, 5).empty());
+}
+
+TEST_CASE("box filter axes: the source pixels and weights of each cell") {
+  // Integer blocks: cell i is [2i, 2i + 2); past the edge the last pixel is reused.
+  const BlockAxis blocks{5, 2};
+  const AxisCell b2 = blocks.cell(2);
+  CHECK(b2.begin == 4);
+  CHECK(b2.end == 6);
+  CHECK(blocks.index(4) == 4);
+  CHECK(blocks.index(5) == 4);
+  CHECK(blocks.weight(b2, 5) == 1.0);
+  // Whole-pixel spans: 10 pixels into 4 cells at i * 10 / 4, and at least one pixel per cell when
+  // there are more cells than pixels.
+  const SpanAxis spans{10, 4};
+  const int begins[4] = {0, 2, 5, 7}, ends[4] = {2, 5, 7, 10};
+  for (int i = 0; i < 4; ++i) {
+    CHECK(spans.cell(i).begin == begins[i]);
+    CHECK(spans.cell(i).end == ends[i]);
+  }
+  const SpanAxis tiny{3, 8};
+  for (int i = 0; i < 8; ++i) {
+    CHECK(tiny.cell(i).end - tiny.cell(i).begin == 1);
+    CHECK(tiny.cell(i).begin == i * 3 / 8);
+  }
+  // Fractional cells: 10 pixels into 4 cells of 2.5; cell 1 is [2.5, 5): pixel 2 by half, 3 and 4 whole.
+  const FractionalAxis frac(10, 4);
+  const AxisCell f1 = frac.cell(1);
+  CHECK(f1.begin == 2);
+  CHECK(f1.end == 5);
+  CHECK(frac.weight(f1, 2) == 0.5);
+  CHECK(frac.weight(f1, 3) == 1.0);
+  CHECK(frac.weight(f1, 4) == 1.0);
+  // Every cell's weights add up to its width, for ratios that are not binary fractions too.
+  for (const auto& [size, out] : {std::pair{10, 4}, {7, 3}, {100, 7}, {13, 13}, {5, 1}}) {
+    const FractionalAxis axis(size, out);
+    double total = 0;
+    for (int i = 0; i < out; ++i) {
+      const AxisCell c = axis.cell(i);
+      CHECK(c.begin >= 0);
+      CHECK(c.end <= size);
+      double w = 0;
+      for (int j = c.begin; j < c.end; ++j) w += std::max(0.0, axis.weight(c, j));
+      CHECK(w == doctest::Approx(double(size) / out).epsilon(1e-12));
+      total += w;
+    }
+    CHECK(total == doctest::Approx(double(size)).epsilon(1e-12));
+  }
+}
+
+TEST_CASE("box filter: visiting order, row weights, and the block means against direct sums") {
+  // area_filter visits a cell's rows in order, each row's columns in order, then end_row(row weight).
+  std::vector<int> visits;
+  std::vector<double> row_weights;
+  area_filter<int>(
+      FractionalAxis(5, 2), BlockAxis{4, 2}, 2, 2,
+      [&](int&, int x, int y, double) { visits.push_back(10 * y + x); },
+      [&](int&, double wy) { row_weights.push_back(wy); }, [](size_t, int) {});
+  // Output (x 0, y 0): rows 0, 1; columns 0, 1, 2 (2 by half). Output (1, 0): columns 2, 3, 4.
+  const std::vector<int> expect = {0, 1, 2, 10, 11, 12, 2, 3, 4, 12, 13, 14, 20, 21, 22, 30, 31, 32, 22, 23, 24, 32, 33, 34};
+  CHECK(visits == expect);
+  CHECK(row_weights == std::vector<double>(8, 1.0));
+
+  // box_downsample_rgb / rgb8 against the mean written out, including a pyramid level of a 1 px wide
+  // image (out 1 x 1 from 1 x 3: the block reuses the last column and row).
+  const Image8 src = random_image(11, 9, 3, 21);
+  for (int s : {1, 2, 3, 4}) {
+    const int ow = 11 / s, oh = 9 / s;
+    std::vector<float> f(size_t(ow) * size_t(oh) * 3);
+    std::vector<uint8_t> u(f.size());
+    box_downsample_rgb(src.pixels.data(), 11, 9, s, f.data());
+    box_downsample_rgb8(src.pixels.data(), 11, 9, s, ow, oh, u.data());
+    for (int y = 0; y < oh; ++y)
+      for (int x = 0; x < ow; ++x)
+        for (int c = 0; c < 3; ++c) {
+          int sum = 0;
+          for (int j = 0; j < s; ++j)
+            for (int i = 0; i < s; ++i) sum += src.pixels[(size_t(y * s + j) * 11 + size_t(x * s + i)) * 3 + size_t(c)];
+          const size_t o = (size_t(y) * size_t(ow) + size_t(x)) * 3 + size_t(c);
+          CHECK(f[o] == doctest::Approx(sum / (255.0 * s * s)).epsilon(1e-6));
+          CHECK(int(u[o]) == (sum + s * s / 2) / (s * s));
+        }
+  }
+  const uint8_t column[9] = {10, 20, 30, 200, 201, 202, 7, 8, 9};  // 1 x 3 RGB
+  uint8_t one[3];
+  box_downsample_rgb8(column, 1, 3, 2, 1, 1, one);
+  // Rows 0 and 1, column 0 twice: (2 (10 + 200) + 2) / 4.
+  CHECK(int(one[0]) == (2 * (10 + 200) + 2) / 4);
+  CHECK(int(one[2]) == (2 * (30 + 202) + 2) / 4);
 }
 
 TEST_CASE("image_from_float_rgb clamps and rounds") {

@@ -39,6 +39,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gs/io/image.h"
+#include "gs/metrics/image_metrics.h"
 #include "gs/platform/file.h"
 #include "gs/platform/process.h"
 
@@ -109,7 +110,8 @@ std::string script_text(const std::string& page, const std::string& id) {
   return end == std::string::npos ? "" : page.substr(begin, end - begin);
 }
 
-// PSNR (dB) over all pixels and the RGB channels of two 8-bit images of one size.
+// PSNR (dB, gs::metrics: +inf when identical) over all pixels and the RGB channels of two 8-bit
+// images of one size (RGB or RGBA).
 double psnr_rgb(const gs::io::Image8& a, const gs::io::Image8& b, int* max_diff) {
   double se = 0;
   *max_diff = 0;
@@ -120,8 +122,7 @@ double psnr_rgb(const gs::io::Image8& a, const gs::io::Image8& b, int* max_diff)
       se += double(d) * d;
       *max_diff = std::max(*max_diff, std::abs(d));
     }
-  const double mse = se / double(3 * n);
-  return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
+  return gs::metrics::psnr_from_sse(se / (255.0 * 255.0), double(3 * n));
 }
 
 // ---- Chromium over the DevTools protocol (pipe) ---------------------------------------------------

@@ -13,25 +13,24 @@ void composite_target(const Image8& image, const Image8& mask, int s, const floa
   }
   // Block sums of m * rgb (in 255 * 255 units) and of m (255 units): the composite is linear in
   // both, so the block mean of the composite is mean(m rgb) + background (1 - mean(m)).
-  const int w = image.width, h = image.height, ow = w / s, oh = h / s;
+  struct Sum {
+    double m, c[3];
+  };
+  const int w = image.width, h = image.height;
   const double norm = 1.0 / double(s * s);
-  for (int y = 0; y < oh; ++y)
-    for (int x = 0; x < ow; ++x) {
-      double m_sum = 0, c_sum[3] = {0, 0, 0};
-      for (int dy = 0; dy < s; ++dy) {
-        const size_t row = size_t(y * s + dy) * size_t(w);
-        for (int dx = 0; dx < s; ++dx) {
-          const size_t p = row + size_t(x * s + dx);
-          const double m = mask.pixels[p];
-          m_sum += m;
-          for (int c = 0; c < 3; ++c) c_sum[c] += m * image.pixels[3 * p + size_t(c)];
-        }
-      }
-      const double cover = m_sum * norm / 255.0;
-      float* o = out + 3 * (size_t(y) * size_t(ow) + size_t(x));
-      for (int c = 0; c < 3; ++c)
-        o[c] = float(c_sum[c] * norm / (255.0 * 255.0) + double(background[c]) * (1.0 - cover));
-    }
+  box_filter<Sum>(
+      w, h, s, w / s, h / s,
+      [&](Sum& sum, int x, int y) {
+        const size_t p = size_t(y) * size_t(w) + size_t(x);
+        const double m = mask.pixels[p];
+        sum.m += m;
+        for (int c = 0; c < 3; ++c) sum.c[c] += m * image.pixels[3 * p + size_t(c)];
+      },
+      [&](size_t i, const Sum& sum) {
+        const double cover = sum.m * norm / 255.0;
+        for (int c = 0; c < 3; ++c)
+          out[3 * i + size_t(c)] = float(sum.c[c] * norm / (255.0 * 255.0) + double(background[c]) * (1.0 - cover));
+      });
 }
 
 Image8 composite_rgb8(const Image8& image, const Image8& mask, const float background[3]) {

@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 
@@ -268,18 +269,19 @@ struct Registrar::Impl {
     return Status::Ok();
   }
 
-  // Mean of f x f blocks of a [h, w, c] float image (remainder dropped).
+  // Mean of f x f blocks of a [h, w, c] float image, c <= 3 (remainder dropped; float sums).
   static void box_down(const float* src, int w, int h, int c, int f, float* dst) {
-    const int lw = w / f, lh = h / f;
     const float norm = 1.0f / float(f * f);
-    for (int y = 0; y < lh; ++y)
-      for (int x = 0; x < lw; ++x)
-        for (int k = 0; k < c; ++k) {
-          float sum = 0;
-          for (int dy = 0; dy < f; ++dy)
-            for (int dx = 0; dx < f; ++dx) sum += src[(size_t(y * f + dy) * size_t(w) + size_t(x * f + dx)) * size_t(c) + size_t(k)];
-          dst[(size_t(y) * size_t(lw) + size_t(x)) * size_t(c) + size_t(k)] = sum * norm;
-        }
+    const size_t nc = size_t(c);
+    io::box_filter<std::array<float, 3>>(
+        w, h, f, w / f, h / f,
+        [&](std::array<float, 3>& sum, int x, int y) {
+          const float* p = src + (size_t(y) * size_t(w) + size_t(x)) * nc;
+          for (size_t k = 0; k < nc; ++k) sum[k] += p[k];
+        },
+        [&](size_t i, const std::array<float, 3>& sum) {
+          for (size_t k = 0; k < nc; ++k) dst[i * nc + k] = sum[k] * norm;
+        });
   }
 
   // Renders the keyframe (colour, depth, alpha) at the finest level for the pose of cam.

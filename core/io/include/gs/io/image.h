@@ -2,12 +2,13 @@
 // 8-bit images: decode (JPEG/PNG via stb_image, from memory), area downscale, PNG encode/write.
 #pragma once
 
-#include <algorithm>
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "gs/io/box_filter.h"
 #include "gs/status.h"
 
 namespace gs::io {
@@ -34,36 +35,34 @@ struct ImageInfo {
   bool has_alpha = false;  // grey + alpha or RGBA
 };
 Expected<ImageInfo> read_image_info(const std::string& path);
-// Box-filter (area) downscale to any size (both <= the source size), fractional taps at the block
-// borders; for an integer ratio it equals box_downsample_rgb8 (the rounded block mean).
+// Box-filter (area) downscale to any size (both <= the source size), fractional taps at the cell
+// borders; for an integer ratio it equals box_downsample_rgb8 (the rounded block mean). Both are
+// gs/io/box_filter.h, the one box filter.
 Image8 resize_area(const Image8& src, int width, int height);
-// The one integer box filter (s x s blocks) of 8-bit RGB [H, W, 3]: calls store(i, sum) with the
-// sum of the block of each output value i of [out_h, out_w, 3]; block rows and columns past the
-// image's edge reuse its last row / column (only when out_w * s > width, e.g. a 1 px image).
-// Non-integer ratios: resize_area (fractional taps). No allocation.
-template <class Store>
-inline void box_filter_rgb(const uint8_t* rgb, int width, int height, int s, int out_w, int out_h, Store&& store) {
-  for (int y = 0; y < out_h; ++y)
-    for (int x = 0; x < out_w; ++x)
-      for (int c = 0; c < 3; ++c) {
-        int sum = 0;
-        for (int dy = 0; dy < s; ++dy) {
-          const size_t row = size_t(std::min(y * s + dy, height - 1)) * size_t(width);
-          for (int dx = 0; dx < s; ++dx) sum += rgb[(row + size_t(std::min(x * s + dx, width - 1))) * 3 + size_t(c)];
-        }
-        store((size_t(y) * size_t(out_w) + size_t(x)) * 3 + size_t(c), sum);
-      }
+// Integer channel sums of 8-bit RGB pixels for box_filter (exact: any summation order).
+using RgbSum = std::array<int, 3>;
+inline auto add_rgb(const uint8_t* rgb, int width) {
+  return [rgb, width](RgbSum& sum, int x, int y) {
+    const uint8_t* p = rgb + (size_t(y) * size_t(width) + size_t(x)) * 3;
+    for (size_t c = 0; c < 3; ++c) sum[c] += p[c];
+  };
 }
 // Mean of each s x s block of an 8-bit RGB image [H, W, 3] as floats in [0, 1], [H / s, W / s, 3]
 // (remainder rows and columns dropped; the matching camera is gs::scaled_camera). No allocation.
 inline void box_downsample_rgb(const uint8_t* rgb, int width, int height, int s, float* out) {
   const float norm = 1.0f / (255.0f * float(s * s));
-  box_filter_rgb(rgb, width, height, s, width / s, height / s, [&](size_t i, int sum) { out[i] = float(sum) * norm; });
+  box_filter<RgbSum>(width, height, s, width / s, height / s, add_rgb(rgb, width),
+                     [&](size_t i, const RgbSum& sum) {
+                       for (size_t c = 0; c < 3; ++c) out[3 * i + c] = float(sum[c]) * norm;
+                     });
 }
-// The same mean rounded to 8 bits, [out_h, out_w, 3] (normally H / s, W / s; at least 1).
+// The same mean rounded to 8 bits, [out_h, out_w, 3] (normally H / s, W / s; at least 1: a block
+// past the image's edge reuses its last row / column).
 inline void box_downsample_rgb8(const uint8_t* rgb, int width, int height, int s, int out_w, int out_h, uint8_t* out) {
   const int n = s * s;
-  box_filter_rgb(rgb, width, height, s, out_w, out_h, [&](size_t i, int sum) { out[i] = uint8_t((sum + n / 2) / n); });
+  box_filter<RgbSum>(width, height, s, out_w, out_h, add_rgb(rgb, width), [&](size_t i, const RgbSum& sum) {
+    for (size_t c = 0; c < 3; ++c) out[3 * i + c] = uint8_t((sum[c] + n / 2) / n);
+  });
 }
 // Encodes as PNG; writes atomically (temp file + rename).
 Expected<std::vector<uint8_t>> encode_png(const Image8& image);
