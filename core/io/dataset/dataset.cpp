@@ -14,6 +14,7 @@
 
 #include "../colmap/colmap_internal.h"
 #include "../io_util.h"
+#include "gs/bilinear.h"
 #include "gs/io/transforms.h"
 #include "gs/platform/file.h"
 #include "gs/platform/path.h"
@@ -69,8 +70,8 @@ Status make_plan(const ColmapCamera& cam, const std::string& where, CameraPlan* 
   return Status::Ok();
 }
 
-// Bilinear resampling through the plan's map, any channel count (images and masks take the same
-// path); positions outside the source rectangle are 0 (black, background).
+// Bilinear resampling (gs/bilinear.h, in float) through the plan's map, any channel count (images
+// and masks take the same path); positions outside the source rectangle are 0 (black, background).
 Image8 undistort(const Image8& src, const CameraPlan& plan) {
   Image8 dst;
   dst.width = src.width, dst.height = src.height, dst.channels = src.channels;
@@ -79,17 +80,12 @@ Image8 undistort(const Image8& src, const CameraPlan& plan) {
   for (size_t i = 0; i < size_t(w) * size_t(h); ++i) {
     const float px = plan.map[2 * i], py = plan.map[2 * i + 1];
     if (!(px >= 0 && px <= float(w) && py >= 0 && py <= float(h))) continue;
-    const float sx = px - 0.5f, sy = py - 0.5f;
-    const int x0 = int(std::floor(sx)), y0 = int(std::floor(sy));
-    const float ax = sx - float(x0), ay = sy - float(y0);
-    const int xa = std::clamp(x0, 0, w - 1), xb = std::clamp(x0 + 1, 0, w - 1);
-    const int ya = std::clamp(y0, 0, h - 1), yb = std::clamp(y0 + 1, 0, h - 1);
-    const uint8_t* r0 = &src.pixels[size_t(ya) * size_t(w) * size_t(ch)];
-    const uint8_t* r1 = &src.pixels[size_t(yb) * size_t(w) * size_t(ch)];
+    const BilinearCell<float> q = bilinear_cell(px - 0.5f, py - 0.5f, w, h);
+    const uint8_t* r0 = &src.pixels[size_t(q.y0) * size_t(w) * size_t(ch)];
+    const uint8_t* r1 = &src.pixels[size_t(q.y1) * size_t(w) * size_t(ch)];
     for (int c = 0; c < ch; ++c) {
-      const float top = (1 - ax) * r0[xa * ch + c] + ax * r0[xb * ch + c];
-      const float bot = (1 - ax) * r1[xa * ch + c] + ax * r1[xb * ch + c];
-      dst.pixels[i * size_t(ch) + size_t(c)] = uint8_t(std::min(255.0f, (1 - ay) * top + ay * bot + 0.5f));
+      const float v = bilinear_blend(q, r0[q.x0 * ch + c], r0[q.x1 * ch + c], r1[q.x0 * ch + c], r1[q.x1 * ch + c]);
+      dst.pixels[i * size_t(ch) + size_t(c)] = uint8_t(std::min(255.0f, v + 0.5f));
     }
   }
   return dst;
