@@ -128,13 +128,9 @@ std::string fmt(double v) {
 // One SplitMix64 stream (gs/random.h) per view.
 class ViewRng {
  public:
-  ViewRng(uint64_t seed, uint64_t view) : state_(mix64(mix64(seed + 0x9E3779B97F4A7C15ull) ^ (view + 1) * 0xD1B54A32D192ED03ull)) {}
-  uint64_t next() {
-    state_ += 0x9E3779B97F4A7C15ull;
-    return mix64(state_);
-  }
+  ViewRng(uint64_t seed, uint64_t view) : gen_{mix64(mix64(seed + 0x9E3779B97F4A7C15ull) ^ (view + 1) * 0xD1B54A32D192ED03ull)} {}
   // Uniform in the open interval (0, 1).
-  double uniform() { return (double(next() >> 11) + 0.5) * 0x1p-53; }
+  double uniform() { return gen_.uniform_open(); }
   // Standard normal, Box-Muller (both values of a pair are used).
   double normal() {
     if (has_spare_) {
@@ -159,7 +155,7 @@ class ViewRng {
   }
 
  private:
-  uint64_t state_;
+  SplitMix64 gen_;
   double spare_ = 0;
   bool has_spare_ = false;
 };

@@ -20,12 +20,9 @@ inline double to_unit(uint64_t h) { return double(h >> 11) * (1.0 / 900719925474
 
 class Rng {
  public:
-  explicit Rng(uint64_t seed) : state_(mix64(seed ^ 0x5851f42d4c957f2dULL)) {}
-  uint64_t next() {
-    state_ += 0x9e3779b97f4a7c15ULL;
-    return mix64(state_);
-  }
-  double uniform() { return to_unit(next()); }
+  explicit Rng(uint64_t seed) : gen_{mix64(seed ^ 0x5851f42d4c957f2dULL)} {}
+  uint64_t next() { return gen_.next(); }
+  double uniform() { return gen_.uniform(); }  // = to_unit(next())
   double uniform(double a, double b) { return a + (b - a) * uniform(); }
   // Integer in [0, n); the modulo bias (n / 2^64) is irrelevant here.
   int below(int n) { return int(next() % uint64_t(n)); }
@@ -37,7 +34,7 @@ class Rng {
   }
 
  private:
-  uint64_t state_;
+  gs::SplitMix64 gen_;  // the one SplitMix64 (gs/random.h)
 };
 
 // Lattice value in [0, 1) at an integer point; the seed selects an independent noise field.
