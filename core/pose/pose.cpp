@@ -3,6 +3,7 @@
 // pose errors. See gs/pose/pose.h for the conventions; all arithmetic is in double.
 #include "gs/pose/pose.h"
 #include "gs/random.h"
+#include "gs/simd/quat.h"
 #include "gs/stats.h"
 
 #include <Eigen/Dense>
@@ -294,6 +295,15 @@ void centre(const Pose& pose, double c[3]) {
   for (int k = 0; k < 3; ++k) c[k] = -c[k];
 }
 
+void rotation_from_quaternion(const double q[4], double R[9]) {
+  const double n = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  if (!(n > 0) || !std::isfinite(n)) {
+    for (int i = 0; i < 9; ++i) R[i] = (i % 4 == 0) ? 1.0 : 0.0;
+    return;
+  }
+  simd::rotmat_of_unit_quat(q[0] / n, q[1] / n, q[2] / n, q[3] / n, R);
+}
+
 Status pose_from_quaternion_checked(const double q[4], const double t[3], const std::string& what, Pose* out) {
   static const char* const kNames[7] = {"qw", "qx", "qy", "qz", "tx", "ty", "tz"};
   const double vals[7] = {q[0], q[1], q[2], q[3], t[0], t[1], t[2]};
@@ -313,10 +323,8 @@ Status pose_from_quaternion_checked(const double q[4], const double t[3], const 
     return invalid_argument(what + ": quaternion (qw qx qy qz) = " + qs + " has norm " + fmt(n) +
                             ", expected 1 (±1e-3); normalise it or check the order: qw qx qy qz tx ty tz");
   }
-  const double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
-  double R[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
-                 2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                 2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
+  double R[9];
+  rotation_from_quaternion(q, R);
   store(R, t, out);
   return Status::Ok();
 }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "gs/simd/quat.h"
 #include "gs/simd/ref.h"
 
 namespace gs::simd {
@@ -15,10 +16,7 @@ void quat_to_rotmat(const T* q_raw, T qn[4], T R[9], T* inv_norm) {
   const T norm = std::sqrt(q_raw[0] * q_raw[0] + q_raw[1] * q_raw[1] + q_raw[2] * q_raw[2] + q_raw[3] * q_raw[3]);
   *inv_norm = T(1) / std::max(norm, T(1e-12));
   for (int k = 0; k < 4; ++k) qn[k] = q_raw[k] * *inv_norm;
-  const T w = qn[0], x = qn[1], y = qn[2], z = qn[3];
-  R[0] = 1 - 2 * (y * y + z * z); R[1] = 2 * (x * y - w * z);     R[2] = 2 * (x * z + w * y);
-  R[3] = 2 * (x * y + w * z);     R[4] = 1 - 2 * (x * x + z * z); R[5] = 2 * (y * z - w * x);
-  R[6] = 2 * (x * z - w * y);     R[7] = 2 * (y * z + w * x);     R[8] = 1 - 2 * (x * x + y * y);
+  rotmat_of_unit_quat(qn[0], qn[1], qn[2], qn[3], R);
 }
 
 // v_q (raw quaternion) from v_R (gradient w.r.t. the rotation matrix of the normalised quaternion).

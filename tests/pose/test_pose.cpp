@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "gs/pose/pose.h"
+#include "gs/simd/quat.h"
 
 namespace {
 
@@ -146,6 +147,37 @@ TEST_CASE("so3_exp matches Rodrigues and is exact at tiny angles") {
     rodrigues(p, Rc);
     CHECK(max_abs_diff(Rs, Rc, 9) < 1e-15);
   }
+}
+
+TEST_CASE("rotation_from_quaternion: the axis-angle rotation, any scale or sign, identity for zero") {
+  Rng rng(12);
+  for (int it = 0; it < 200; ++it) {
+    double phi[3], Rr[9];
+    random_phi(rng, kPi, phi);
+    const double th = norm3(phi);
+    if (th < 1e-3) continue;
+    rodrigues(phi, Rr);
+    // q = (cos(th/2), sin(th/2) axis), then scaled by 2.5 and negated: one rotation.
+    const double s = std::sin(0.5 * th) / th;
+    const double q[4] = {std::cos(0.5 * th), s * phi[0], s * phi[1], s * phi[2]};
+    const double q_scaled[4] = {-2.5 * q[0], -2.5 * q[1], -2.5 * q[2], -2.5 * q[3]};
+    double R[9], Rs[9];
+    gs::pose::rotation_from_quaternion(q, R);
+    gs::pose::rotation_from_quaternion(q_scaled, Rs);
+    CHECK(max_abs_diff(R, Rr, 9) < 1e-14);
+    CHECK(max_abs_diff(Rs, Rr, 9) < 1e-14);
+    // The formula in float (as the projection kernels use it) agrees to float precision.
+    float Rf[9];
+    gs::simd::rotmat_of_unit_quat(float(q[0]), float(q[1]), float(q[2]), float(q[3]), Rf);
+    for (int k = 0; k < 9; ++k) CHECK(std::fabs(double(Rf[k]) - Rr[k]) < 1e-6);
+  }
+  const double zero[4] = {0, 0, 0, 0}, bad[4] = {1, std::nan(""), 0, 0};
+  const double identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  double R[9];
+  gs::pose::rotation_from_quaternion(zero, R);
+  CHECK(max_abs_diff(R, identity, 9) == 0);
+  gs::pose::rotation_from_quaternion(bad, R);
+  CHECK(max_abs_diff(R, identity, 9) == 0);
 }
 
 TEST_CASE("so3 log inverts exp for random tiny and near-pi angles") {

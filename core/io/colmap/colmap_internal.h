@@ -26,9 +26,6 @@ constexpr int kMaxCameraSide = 100000;
 std::string check_camera(const ColmapCamera& cam);
 std::string check_pose(const double qvec[4], const double tvec[3]);
 
-// Row-major rotation of a quaternion (w, x, y, z), normalised first; identity for a zero or
-// non-finite one (the pose readers refuse those before).
-void rotation_from_quaternion(const double q[4], double R[9]);
 // Unit quaternion (w >= 0, COLMAP's sign) of a row-major rotation matrix, Shepperd's method.
 void quaternion_from_rotation(const double R[9], double q[4]);
 

@@ -9,6 +9,7 @@
 #include "../io_util.h"
 #include "colmap_internal.h"
 #include "gs/platform/file.h"
+#include "gs/pose/pose.h"
 #include "gs/platform/path.h"
 
 namespace gs::io {
@@ -166,7 +167,7 @@ Expected<ColmapModel> read_colmap_model(const std::string& dir) {
 Pose pose_from_colmap(const double qvec[4], const double tvec[3]) {
   Pose pose;
   double R[9];
-  detail::rotation_from_quaternion(qvec, R);
+  pose::rotation_from_quaternion(qvec, R);
   for (int i = 0; i < 9; ++i) pose.R[i] = float(R[i]);
   for (int i = 0; i < 3; ++i) pose.t[i] = float(tvec[i]);
   return pose;
@@ -180,19 +181,6 @@ void pose_to_colmap(const Pose& pose, double qvec[4], double tvec[3]) {
 }
 
 namespace detail {
-
-void rotation_from_quaternion(const double q[4], double R[9]) {
-  const double n = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-  if (!(n > 0) || !std::isfinite(n)) {
-    for (int i = 0; i < 9; ++i) R[i] = (i % 4 == 0) ? 1.0 : 0.0;
-    return;
-  }
-  const double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
-  const double m[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
-                       2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                       2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
-  for (int i = 0; i < 9; ++i) R[i] = m[i];
-}
 
 void quaternion_from_rotation(const double m[9], double q[4]) {
   // Shepperd's method: divide by the largest of the four candidate terms for stability.

@@ -11,6 +11,7 @@
 #include "../io_util.h"
 #include "gs/io/image.h"
 #include "gs/io/transforms.h"
+#include "gs/pose/pose.h"
 
 namespace gs::io {
 namespace {
@@ -220,7 +221,7 @@ std::string pose_from_transform_matrix(const double c2w[16], double qvec[4], dou
   detail::quaternion_from_rotation(R, qvec);
   // t = -R C with the rotation the quaternion stands for, so the camera centre stays exact.
   double Rq[9];
-  detail::rotation_from_quaternion(qvec, Rq);
+  pose::rotation_from_quaternion(qvec, Rq);
   const double C[3] = {c2w[3], c2w[7], c2w[11]};
   for (int i = 0; i < 3; ++i) tvec[i] = -(Rq[3 * i] * C[0] + Rq[3 * i + 1] * C[1] + Rq[3 * i + 2] * C[2]);
   return "";
@@ -228,7 +229,7 @@ std::string pose_from_transform_matrix(const double c2w[16], double qvec[4], dou
 
 void transform_matrix_from_pose(const double qvec[4], const double tvec[3], double c2w[16]) {
   double R[9];
-  detail::rotation_from_quaternion(qvec, R);
+  pose::rotation_from_quaternion(qvec, R);
   const double s[3] = {1, -1, -1};
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) c2w[4 * i + j] = R[3 * j + i] * s[j];  // R_c2w = R^T diag(s)

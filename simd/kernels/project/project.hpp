@@ -13,6 +13,7 @@
 
 #include "gs/simd/isa.h"
 
+#include "gs/simd/quat.h"
 #include "gs/simd/ref.h"
 #include "gs/simd/splat.h"
 
@@ -69,9 +70,8 @@ struct ProjectKernels {
     const B qw = B::load_aligned(q[0]), qx = B::load_aligned(q[1]), qy = B::load_aligned(q[2]), qz = B::load_aligned(q[3]);
     const B inv_norm = B(1.0f) / xsimd::max(xsimd::sqrt(qw * qw + qx * qx + qy * qy + qz * qz), B(1e-12f));
     const B w = qw * inv_norm, x = qx * inv_norm, y = qy * inv_norm, z = qz * inv_norm;
-    const B Rg[9] = {B(1.0f) - B(2.0f) * (y * y + z * z), B(2.0f) * (x * y - w * z), B(2.0f) * (x * z + w * y),
-                     B(2.0f) * (x * y + w * z), B(1.0f) - B(2.0f) * (x * x + z * z), B(2.0f) * (y * z - w * x),
-                     B(2.0f) * (x * z - w * y), B(2.0f) * (y * z + w * x), B(1.0f) - B(2.0f) * (x * x + y * y)};
+    B Rg[9];
+    rotmat_of_unit_quat(w, x, y, z, Rg);
     const B s[3] = {xsimd::exp(B::load_aligned(ls[0])), xsimd::exp(B::load_aligned(ls[1])),
                     xsimd::exp(B::load_aligned(ls[2]))};
     B Mg[9];
@@ -196,9 +196,8 @@ struct ProjectKernels {
     B w = B::load_aligned(q[0]), x = B::load_aligned(q[1]), y = B::load_aligned(q[2]), z = B::load_aligned(q[3]);
     const B inv_norm = B(1.0f) / xsimd::max(xsimd::sqrt(w * w + x * x + y * y + z * z), B(1e-12f));
     w *= inv_norm; x *= inv_norm; y *= inv_norm; z *= inv_norm;
-    const B Rg[9] = {B(1.0f) - B(2.0f) * (y * y + z * z), B(2.0f) * (x * y - w * z), B(2.0f) * (x * z + w * y),
-                     B(2.0f) * (x * y + w * z), B(1.0f) - B(2.0f) * (x * x + z * z), B(2.0f) * (y * z - w * x),
-                     B(2.0f) * (x * z - w * y), B(2.0f) * (y * z + w * x), B(1.0f) - B(2.0f) * (x * x + y * y)};
+    B Rg[9];
+    rotmat_of_unit_quat(w, x, y, z, Rg);
     const B s[3] = {xsimd::exp(B::load_aligned(ls[0])), xsimd::exp(B::load_aligned(ls[1])),
                     xsimd::exp(B::load_aligned(ls[2]))};
     const B mx = B::load_aligned(mu[0]), my = B::load_aligned(mu[1]), mz = B::load_aligned(mu[2]);

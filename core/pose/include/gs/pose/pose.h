@@ -45,6 +45,9 @@ void centre(const Pose& pose, double c[3]);
 // A pose given as text or numbers by a user: COLMAP order qw qx qy qz tx ty tz (world-to-camera).
 // Errors (kInvalidArgument, message names `what`): any value NaN/Inf; |q| differs from 1 by more
 // than 1e-3 ("normalise it or check the order: qw qx qy qz tx ty tz"); q = 0.
+// Row-major rotation of the quaternion q / |q| (w, x, y, z), the norm divided out in double
+// (gs/simd/quat.h's formula); the identity for a zero or non-finite q (pose readers refuse those).
+void rotation_from_quaternion(const double q[4], double R[9]);
 Status pose_from_quaternion_checked(const double q[4], const double t[3], const std::string& what, Pose* out);
 // Parses "qw qx qy qz tx ty tz" (spaces and/or commas) then checks it as above.
 Status parse_pose(const std::string& text, const std::string& what, Pose* out);
