@@ -33,21 +33,8 @@ inline Camera synthetic_camera(int width, int height) {
   return c;
 }
 
-struct SyntheticScene {
+struct SyntheticScene : ColoredGaussians {
   Camera camera;
-  size_t count = 0;
-  std::vector<float> means, log_scales, quats, opacities, colors;
-
-  GaussianParams params() const {
-    GaussianParams p;
-    p.count = count;
-    p.means = means.data();
-    p.log_scales = log_scales.data();
-    p.quats = quats.data();
-    p.opacities = opacities.data();
-    p.colors = colors.data();
-    return p;
-  }
 };
 
 // Gaussians uniform in volume inside the view frustum between depths 2 and 10 (depth drawn with
@@ -57,12 +44,7 @@ struct SyntheticScene {
 inline SyntheticScene synthetic_scene(const Camera& camera, size_t count, uint64_t seed) {
   SyntheticScene s;
   s.camera = camera;
-  s.count = count;
-  s.means.resize(3 * count);
-  s.log_scales.resize(3 * count);
-  s.quats.resize(4 * count);
-  s.opacities.resize(count);
-  s.colors.resize(3 * count);
+  s.resize(count);
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::normal_distribution<double> nrm(0.0, 1.0);

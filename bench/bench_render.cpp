@@ -406,11 +406,7 @@ std::vector<float> mean_knn_distance(const std::vector<float>& xyz, int k) {
   return out;
 }
 
-struct DatasetScene {
-  std::vector<float> means, log_scales, quats, opacities, colors;
-};
-
-Workload dataset_workload(const std::string& dir, int max_width, int max_views, DatasetScene& s) {
+Workload dataset_workload(const std::string& dir, int max_width, int max_views, ColoredGaussians& s) {
   io::DatasetOptions dopt;
   dopt.max_width = max_width;
   dopt.llffhold = 0;
@@ -449,12 +445,7 @@ Workload dataset_workload(const std::string& dir, int max_width, int max_views, 
   const size_t slash = name.find_last_of('/');
   w.label = slash == std::string::npos ? name : name.substr(slash + 1);
   w.count = n;
-  w.params.count = n;
-  w.params.means = s.means.data();
-  w.params.log_scales = s.log_scales.data();
-  w.params.quats = s.quats.data();
-  w.params.opacities = s.opacities.data();
-  w.params.colors = s.colors.data();
+  w.params = s.params();
   const size_t nv = max_views > 0 ? std::min(d.views.size(), size_t(max_views)) : d.views.size();
   // Spread the chosen views over the whole capture rather than taking the first few.
   for (size_t v = 0; v < nv; ++v) {
@@ -575,7 +566,7 @@ int run(int argc, char** argv) {
   const uint64_t t_start = platform::now_ns();
   if (!dataset_dir.empty()) {
 #if defined(GS_BENCH_HAVE_IO)
-    DatasetScene ds;
+    ColoredGaussians ds;
     const Workload w = dataset_workload(dataset_dir, max_width, max_views, ds);
     run_workload(w, st, pools, rows, skipped);
 #else

@@ -23,11 +23,8 @@ class CloudDecoder {
  public:
   void reserve(size_t n, int sh_degree) {
     const size_t K = size_t(sh_coeff_count(sh_degree));
-    means_.assign(3 * n, 0.0f);
-    log_scales_.assign(3 * n, 0.0f);
-    quats_.assign(4 * n, 0.0f);
-    opacities_.assign(n, 0.0f);
-    colors_.assign(3 * n, 0.0f);
+    g_ = ColoredGaussians{};
+    g_.resize(n);
     sh_.assign(n * K * 3, 0.0f);
     capacity_ = n;
   }
@@ -52,38 +49,31 @@ class CloudDecoder {
       const double r = 3.0 * std::exp(double(std::max(ls[0], std::max(ls[1], ls[2])))) * fmax / z + 1.0;  // px
       const double u = cam.intr.fx * x / z + cam.intr.cx, v = cam.intr.fy * y / z + cam.intr.cy;
       if (u + r < 0 || u - r > cam.intr.width || v + r < 0 || v - r > cam.intr.height) continue;
-      std::copy(p, p + 3, &means_[3 * n]);
-      std::copy(ls, ls + 3, &log_scales_[3 * n]);
-      std::copy(&c.quats[4 * i], &c.quats[4 * i] + 4, &quats_[4 * n]);
-      opacities_[n] = 1.0f / (1.0f + std::exp(-c.opacity_logits[i]));
+      std::copy(p, p + 3, &g_.means[3 * n]);
+      std::copy(ls, ls + 3, &g_.log_scales[3 * n]);
+      std::copy(&c.quats[4 * i], &c.quats[4 * i] + 4, &g_.quats[4 * n]);
+      g_.opacities[n] = 1.0f / (1.0f + std::exp(-c.opacity_logits[i]));
       std::copy(&c.sh[i * size_t(K) * 3], &c.sh[(i + 1) * size_t(K) * 3], &sh_[n * size_t(K) * 3]);
       ++n;
     }
     double centre[3];
     camera_centre(cam.pose, centre);
     const float campos[3] = {float(centre[0]), float(centre[1]), float(centre[2])};
-    simd::sh_fwd_ref<float>(n, c.sh_degree, means_.data(), sh_.data(), campos, colors_.data());
+    simd::sh_fwd_ref<float>(n, c.sh_degree, g_.means.data(), sh_.data(), campos, g_.colors.data());
     count_ = n;
     return n;
   }
 
   // The last decode's Gaussians with their colours (SH evaluated for its camera).
-  GaussianParams params() const {
-    GaussianParams gp;
-    gp.count = count_;
-    gp.means = means_.data();
-    gp.log_scales = log_scales_.data();
-    gp.quats = quats_.data();
-    gp.opacities = opacities_.data();
-    gp.colors = colors_.data();
-    return gp;
-  }
+  GaussianParams params() const { return g_.params(count_); }
   uint64_t bytes() const {
-    return uint64_t(means_.size() + log_scales_.size() + quats_.size() + opacities_.size() + colors_.size() + sh_.size()) * 4;
+    return uint64_t(g_.means.size() + g_.log_scales.size() + g_.quats.size() + g_.opacities.size() + g_.colors.size() +
+                    sh_.size()) * 4;
   }
 
  private:
-  std::vector<float> means_, log_scales_, quats_, opacities_, colors_, sh_;
+  ColoredGaussians g_;  // capacity_ rows, the first count_ decoded
+  std::vector<float> sh_;
   size_t capacity_ = 0, count_ = 0;
 };
 

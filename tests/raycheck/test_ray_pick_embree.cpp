@@ -229,9 +229,8 @@ struct Case {
 
 constexpr int kWidth = 320, kHeight = 240;
 
-struct Scene {
+struct Scene : gs::ColoredGaussians {
   gs::Camera cam;
-  std::vector<float> means, log_scales, quats, opacities, colors;
   size_t n = 0, nested_front = 0, nested_hidden = 0;
 };
 
@@ -461,13 +460,7 @@ struct Check {
 // pixel's dominant Gaussian with the first hit of the pixel ray through `truth`.
 Check run_check(const Scene& truth, const Scene& shown) {
   Check out;
-  gs::GaussianParams params;
-  params.count = shown.n;
-  params.means = shown.means.data();
-  params.log_scales = shown.log_scales.data();
-  params.quats = shown.quats.data();
-  params.opacities = shown.opacities.data();
-  params.colors = shown.colors.data();
+  const gs::GaussianParams params = shown.params(shown.n);
   gs::RenderCapacity cap;
   cap.max_gaussians = shown.n;
   cap.max_isects = 64 * shown.n;  // a 14 px sigma gives a 42 px radius: at most 7 x 7 tiles each

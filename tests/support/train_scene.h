@@ -35,14 +35,16 @@ struct TrainScene {
     std::uniform_real_distribution<float> u(-1, 1), u01(0, 1);
     std::normal_distribution<float> nrm(0, 1);
     const size_t n = 500;
-    std::vector<float> means(3 * n), ls(3 * n), quats(4 * n), op(n), col(3 * n);
+    ColoredGaussians g;
+    g.resize(n);
     for (size_t i = 0; i < n; ++i) {
-      for (int c = 0; c < 3; ++c) means[3 * i + size_t(c)] = 1.1f * u(rng);
-      for (int c = 0; c < 3; ++c) ls[3 * i + size_t(c)] = std::log(0.06f + 0.12f * u01(rng));
-      for (int c = 0; c < 4; ++c) quats[4 * i + size_t(c)] = nrm(rng);
-      op[i] = 0.5f + 0.45f * u01(rng);
+      for (int c = 0; c < 3; ++c) g.means[3 * i + size_t(c)] = 1.1f * u(rng);
+      for (int c = 0; c < 3; ++c) g.log_scales[3 * i + size_t(c)] = std::log(0.06f + 0.12f * u01(rng));
+      for (int c = 0; c < 4; ++c) g.quats[4 * i + size_t(c)] = nrm(rng);
+      g.opacities[i] = 0.5f + 0.45f * u01(rng);
       // Colour varies smoothly in space plus noise, so that neighbouring anchors can share features.
-      for (int c = 0; c < 3; ++c) col[3 * i + size_t(c)] = std::clamp(0.5f + 0.4f * means[3 * i + size_t(c)] + 0.15f * u(rng), 0.0f, 1.0f);
+      for (int c = 0; c < 3; ++c)
+        g.colors[3 * i + size_t(c)] = std::clamp(0.5f + 0.4f * g.means[3 * i + size_t(c)] + 0.15f * u(rng), 0.0f, 1.0f);
     }
     Renderer r;
     RenderCapacity cap;
@@ -51,13 +53,7 @@ struct TrainScene {
     cap.max_height = kSceneH;
     cap.max_sh_degree = 0;
     REQUIRE(r.init(cap, nullptr).ok());
-    GaussianParams gp;
-    gp.count = n;
-    gp.means = means.data();
-    gp.log_scales = ls.data();
-    gp.quats = quats.data();
-    gp.opacities = op.data();
-    gp.colors = col.data();
+    const GaussianParams gp = g.params();
     std::vector<float> rgb(size_t(kSceneW) * kSceneH * 3);
     views.resize(kSceneViews);
     const PinholeIntrinsics intr{58, 58, 0.5f * kSceneW + 0.7f, 0.5f * kSceneH - 0.4f, kSceneW, kSceneH};
@@ -90,7 +86,7 @@ struct TrainScene {
     }
     for (auto& v : views) ptrs.push_back(&v);
     for (size_t i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) points.push_back(means[3 * i + size_t(c)] + 0.01f * nrm(rng));
+      for (int c = 0; c < 3; ++c) points.push_back(g.means[3 * i + size_t(c)] + 0.01f * nrm(rng));
   }
 };
 

@@ -12,6 +12,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "gs/camera.h"
 #include "gs/status.h"
@@ -31,6 +32,38 @@ struct GaussianParams {
   const float* colors = nullptr;      // [N, 3] RGB, or nullptr when sh is given
   const float* sh = nullptr;          // [N, K, 3], K = (sh_degree + 1)^2, evaluated for the view
   int sh_degree = 0;
+};
+
+// Gaussians with activated opacities and RGB colours owned in vectors (benchmark and test scenes,
+// a cloud decoded for one view), and the renderer's view of them: the one GaussianParams set-up
+// from vectors. params() stays valid until a vector is resized.
+struct ColoredGaussians {
+  std::vector<float> means;       // [N, 3] world
+  std::vector<float> log_scales;  // [N, 3]
+  std::vector<float> quats;       // [N, 4] (w, x, y, z), any non-zero norm
+  std::vector<float> opacities;   // [N] in [0, 1]
+  std::vector<float> colors;      // [N, 3] RGB
+
+  size_t size() const { return opacities.size(); }
+  void resize(size_t n) {
+    means.resize(3 * n);
+    log_scales.resize(3 * n);
+    quats.resize(4 * n);
+    opacities.resize(n);
+    colors.resize(3 * n);
+  }
+  // The first `count` Gaussians (the vectors may hold more: capacity kept across views).
+  GaussianParams params(size_t count) const {
+    GaussianParams p;
+    p.count = count;
+    p.means = means.data();
+    p.log_scales = log_scales.data();
+    p.quats = quats.data();
+    p.opacities = opacities.data();
+    p.colors = colors.data();
+    return p;
+  }
+  GaussianParams params() const { return params(size()); }
 };
 
 // Gradient outputs; any pointer may be null to skip it. Arrays are overwritten.
