@@ -24,13 +24,13 @@
 
 #include "bench_common.h"
 #include "gs/io/colmap.h"
+#include "gs/jobs/svg_plot.h"
 #include "gs/model/trainer.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
 #include "gs/pose/register.h"
-#include "svg_plot.h"
 
 #ifndef GS_BENCH_DEFAULT_DATASET
 #define GS_BENCH_DEFAULT_DATASET "../shared/data/snowmiku_plush"
@@ -40,6 +40,7 @@ namespace gs::bench {
 namespace {
 
 namespace fs = std::filesystem;
+namespace svg = gs::jobs::svg;
 
 [[noreturn]] void die(const std::string& what) {
   std::fprintf(stderr, "bench_register: %s\n", what.c_str());

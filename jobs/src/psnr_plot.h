@@ -14,7 +14,8 @@ struct PsnrRow {
   double seconds = 0, psnr = 0;
 };
 
-// A 720x440 SVG line plot of test PSNR (dB) against training seconds.
+// A 720x440 SVG line plot of test PSNR (dB) against training seconds (gs/jobs/svg_plot.h); the
+// title is escaped, rows without a finite PSNR are left out.
 std::string psnr_svg(const std::vector<PsnrRow>& rows, const std::string& title);
 
 }  // namespace gs::jobs
