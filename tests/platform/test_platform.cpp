@@ -97,6 +97,31 @@ TEST_CASE("parallel_for covers every index exactly once") {
   }
 }
 
+TEST_CASE("for_each_index calls fn once per index, shared between the workers") {
+  for (int t : {1, 3}) {
+    ThreadPool pool(t);
+    REQUIRE(pool.num_threads() == t);
+    for (size_t n : {size_t(0), size_t(1), size_t(5), size_t(997)}) {
+      std::vector<std::atomic<int>> hits(n);
+      std::vector<std::thread::id> who(n);
+      pool.for_each_index(n, [&](size_t i) {
+        hits[i].fetch_add(1);
+        who[i] = std::this_thread::get_id();
+        // A slow first item: while its thread sleeps, the other workers take the rest.
+        if (i == 0 && n > 1) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      });
+      int wrong = 0;
+      for (auto& h : hits) wrong += h.load() != 1;
+      CHECK(wrong == 0);
+      if (t > 1 && n > 1) {
+        size_t others = 0;
+        for (size_t i = 1; i < n; ++i) others += who[i] != who[0];
+        CHECK(others > 0);
+      }
+    }
+  }
+}
+
 TEST_CASE("parallel_for chunk ends do not overflow near SIZE_MAX") {
   // Only the [begin, end) bookkeeping is checked; nothing is indexed.
   ThreadPool pool(2);

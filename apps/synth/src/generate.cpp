@@ -13,8 +13,8 @@
 #include "dataset_parts.h"
 #include "gs/io/colmap.h"
 #include "gs/io/image.h"
+#include "gs/platform/thread_pool.h"
 #include "hbgs/synth.h"
-#include "parallel.h"
 #include "procedural.h"
 #include "view_math.h"
 
@@ -104,9 +104,10 @@ std::vector<SparsePoint> sample_sparse_points(const Scene& scene, const std::vec
       cands.push_back(std::move(c));
       surface.insert(surface.end(), hit.position, hit.position + 3);
     }
-    parallel_for(int(cands.size()), threads, [&](int i) {
-      SparsePoint& c = cands[size_t(i)];
-      const double* s = &surface[3 * size_t(i)];
+    gs::platform::ThreadPool pool(threads);
+    pool.for_each_index(cands.size(), [&](size_t i) {
+      SparsePoint& c = cands[i];
+      const double* s = &surface[3 * i];
       for (int v = 0; v < num_views; ++v) {
         Projection p = project(views[size_t(v)].camera.pose, fx, fy, cx, cy, c.xyz);
         if (!(p.cam[2] > 1e-6) || !(p.u >= 0 && p.u < W && p.v >= 0 && p.v < H)) continue;
@@ -292,8 +293,9 @@ gs::Expected<SynthSummary> generate_impl(const SynthOptions& opt, const std::str
   // PNG compression dominates writing; encode views in parallel and report the first failure in
   // view order.
   std::vector<gs::Status> written(static_cast<size_t>(num_views));
-  detail::parallel_for(num_views, opt.threads, [&](int v) {
-    written[size_t(v)] = gs::io::write_png((images_dir / model.images[size_t(v)].name).string(), images[size_t(v)]);
+  gs::platform::ThreadPool pool(opt.threads);
+  pool.for_each_index(size_t(num_views), [&](size_t v) {
+    written[v] = gs::io::write_png((images_dir / model.images[v].name).string(), images[v]);
   });
   for (const gs::Status& st : written) GS_RETURN_IF_ERROR(st);
   GS_RETURN_IF_ERROR(gs::io::write_colmap_text(model, (root / "sparse" / "0").string()));

@@ -16,8 +16,8 @@
 #include "gs/io/image.h"
 #include "gs/io/transforms.h"
 #include "gs/platform/file.h"
+#include "gs/platform/thread_pool.h"
 #include "hbgs/synth.h"
-#include "parallel.h"
 #include "procedural.h"
 
 namespace hbgs::synth {
@@ -153,8 +153,8 @@ gs::Expected<ObjectSummary> generate_impl(const ObjectOptions& opt, const std::s
   const fs::path root(out_dir);
   for (const char* sub : {"images", "masks"}) GS_RETURN_IF_ERROR(gs::platform::make_dirs((root / sub).string()));
   std::vector<gs::Status> written(n_views);
-  detail::parallel_for(num_views, opt.threads, [&](int v) {
-    const size_t i = size_t(v);
+  gs::platform::ThreadPool pool(opt.threads);
+  pool.for_each_index(size_t(num_views), [&](size_t i) {
     const std::string image_path = (root / "images" / names[i]).string();
     gs::Status st = cluttered ? gs::io::write_jpeg(image_path, composite[i], 95) : gs::io::write_png(image_path, subject[i]);
     if (st.ok()) st = gs::io::write_png((root / "masks" / mask_names[i]).string(), alpha_of(subject[i]));

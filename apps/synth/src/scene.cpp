@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "gs/platform/thread_pool.h"
 #include "hbgs/synth.h"
 #include "meshes.h"
-#include "parallel.h"
 #include "procedural.h"
 #include "view_math.h"
 
@@ -434,7 +434,9 @@ void Scene::render_layers(const gs::Camera& camera, int samples_per_axis, uint64
   make(subject, 4);
   if (w <= 0 || h <= 0) return;
   detail::ViewRays rays(camera);
-  detail::parallel_for(h, threads, [&](int y) {
+  gs::platform::ThreadPool pool(threads);
+  pool.for_each_index(size_t(h), [&](size_t row) {
+    const int y = int(row);
     for (int x = 0; x < w; ++x) {
       double sum[3] = {0, 0, 0}, own[3] = {0, 0, 0};  // all samples; subject samples only
       int hits = 0;

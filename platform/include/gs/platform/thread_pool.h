@@ -37,6 +37,14 @@ class ThreadPool {
   void parallel_for(size_t n, size_t grain, F& f) {
     parallel_for(n, grain, [](void* c, size_t b, size_t e, int w) { (*static_cast<F*>(c))(b, e, w); }, &f);
   }
+  // fn(i) for each i in [0, n), items claimed one at a time (uneven items balance themselves).
+  template <class F>
+  void for_each_index(size_t n, F&& fn) {
+    auto items = [&fn](size_t begin, size_t end, int) {
+      for (size_t i = begin; i < end; ++i) fn(i);
+    };
+    parallel_for(n, 1, items);
+  }
 
  private:
   struct Impl;
