@@ -114,12 +114,8 @@ struct Buffers {
     v_opacities.resize(n);
     v_colors.resize(3 * n);
     v_means2d.resize(2 * n);
-    grads.v_means = v_means.data();
-    grads.v_log_scales = v_log_scales.data();
-    grads.v_quats = v_quats.data();
-    grads.v_opacities = v_opacities.data();
-    grads.v_colors = v_colors.data();
-    grads.v_means2d = v_means2d.data();
+    grads = colored_gaussian_grads(v_means.data(), v_log_scales.data(), v_quats.data(), v_opacities.data(),
+                                   v_colors.data(), v_means2d.data());
   }
 };
 

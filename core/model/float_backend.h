@@ -39,18 +39,6 @@ inline ModelParamsT<float> model_params(const HybridModel& model) {
   return p;
 }
 
-// The renderer's view of decoded neural Gaussians (colours, no SH).
-inline GaussianParams gaussian_params(const NeuralGaussians<float>& ng) {
-  GaussianParams gp;
-  gp.count = ng.count;
-  gp.means = ng.means;
-  gp.log_scales = ng.log_scales;
-  gp.quats = ng.quats;
-  gp.opacities = ng.opacities;
-  gp.colors = ng.colors;
-  return gp;
-}
-
 class FloatBackend {
  public:
   static constexpr int kChunks = 8;        // fixed MLP row partition (thread-count independent)
@@ -159,13 +147,7 @@ class FloatBackend {
 
   Status render_bwd(const float* v_rgb, float* v_means, float* v_log_scales, float* v_quats, float* v_opacities,
                     float* v_colors, float* v_means2d, double* v_pose) {
-    GaussianGrads g;
-    g.v_means = v_means;
-    g.v_log_scales = v_log_scales;
-    g.v_quats = v_quats;
-    g.v_opacities = v_opacities;
-    g.v_colors = v_colors;
-    g.v_means2d = v_means2d;
+    GaussianGrads g = colored_gaussian_grads(v_means, v_log_scales, v_quats, v_opacities, v_colors, v_means2d);
     GS_RETURN_IF_ERROR(renderer_->backward(v_rgb, &g));
     for (int i = 0; i < 6; ++i) v_pose[i] += g.v_pose[i];
     return Status::Ok();

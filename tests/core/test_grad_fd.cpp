@@ -180,13 +180,7 @@ TEST_CASE("fd gradients: Gaussians beyond the image edge (Jacobian clamp active)
 // run ~6x slower there). Under emulation, test_pose_jacobian's opaque scene (qemu label) checks a
 // pose Jacobian by finite differences on a scene with early stops and alpha clamps.
 TEST_CASE("fd gradients: dense opaque stack with early termination and the 0.99 alpha clamp" * GS_FULL_SIZE_ONLY) {
-  gs::test::SceneSpec spec;
-  spec.count = 40;
-  spec.min_opacity = 0.6;
-  spec.max_opacity = 1.0;
-  spec.min_scale = 0.2;
-  spec.max_scale = 0.6;
-  check_scene(41, spec);
+  check_scene(41, gs::test::opaque_stack_spec());
 }
 
 TEST_CASE("fd gradients: image size not a multiple of 16 and non-square") {

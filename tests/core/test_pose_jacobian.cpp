@@ -81,17 +81,6 @@ Case make_case(uint64_t seed, const gs::test::SceneSpec& spec, bool saturate = f
   return c;
 }
 
-// A dense opaque stack: early termination and (with saturate) the 0.99 alpha clamp.
-gs::test::SceneSpec opaque_spec() {
-  gs::test::SceneSpec s;
-  s.count = 40;
-  s.min_opacity = 0.6;
-  s.max_opacity = 1.0;
-  s.min_scale = 0.2;
-  s.max_scale = 0.6;
-  return s;
-}
-
 // 4-point central differences, h = 1e-6 (rad or world units; ~4e-5 px of motion at these focal
 // lengths), falling back to h / 4 when the +-2h forwards change a discrete decision (signature).
 // Rounding noise of the double forward is ~1e-15 per pixel value, so ~1e-9 of derivative at
@@ -196,7 +185,7 @@ TEST_CASE("pose jacobian: reference matches central finite differences") {
   edge.frac_outside = 0.5;
   edge.count = 16;
   check_fd(111, edge, &total);
-  check_fd(121, opaque_spec(), &total, true);
+  check_fd(121, gs::test::opaque_stack_spec(), &total, true);
   gs::test::SceneSpec odd;  // image size not a multiple of the tile size
   odd.width = 37;
   odd.height = 19;
@@ -227,7 +216,7 @@ TEST_CASE("pose jacobian: the edge and opaque scenes exercise the tan clamp and 
     }
   }
   CHECK(clamped_visible > 0);
-  const Case co = make_case(121, opaque_spec(), true);
+  const Case co = make_case(121, gs::test::opaque_stack_spec(), true);
   const Forward<double> f = gs::ref::render_fwd(co.scene, co.view);
   int early_stops = 0;
   for (double T : f.final_T) early_stops += T < 1e-3 ? 1 : 0;
@@ -255,7 +244,7 @@ TEST_CASE("pose jacobian: J transpose v equals the backward pose gradient") {
   edge.frac_outside = 0.5;
   edge.count = 16;
   check_backward_consistency(211, edge);
-  check_backward_consistency(221, opaque_spec(), true);
+  check_backward_consistency(221, gs::test::opaque_stack_spec(), true);
 }
 
 namespace {

@@ -157,8 +157,20 @@ TEST_CASE("register: Adam reduces a 3 degree error and keeps the best pose" * GS
   CHECK(r.final_rmse <= r.initial_rmse);
 }
 
-TEST_CASE("register: the registration loop allocates nothing after set-up") {
+// After one warm-up registration, a second one from another start allocates nothing.
+void check_allocation_free(const pose::RegisterOptions& opt, platform::ThreadPool* pool) {
   const Fixture& f = fixture();
+  auto reg = pose::Registrar::create(f.model, kW, kH, opt, pool);
+  REQUIRE(reg.ok());
+  pose::RegisterResult r;
+  REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(4, 0.03, 11), &r).ok());  // warm-up
+  test::AllocationScope scope;
+  REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(6, 0.04, 12), &r).ok());
+  CHECK(scope.count() == 0);
+  CHECK(r.iterations > 0);
+}
+
+TEST_CASE("register: the registration loop allocates nothing after set-up") {
   platform::ThreadPool pool(2);
   // Reduced size: the default (keyframe) solver only; all three take ~30 s under qemu-aarch64.
   for (pose::RegisterOptions::Solver solver : test::full_or_first<pose::RegisterOptions::Solver>(
@@ -166,33 +178,17 @@ TEST_CASE("register: the registration loop allocates nothing after set-up") {
     pose::RegisterOptions opt;
     opt.solver = solver;
     opt.adam_iterations_per_level = 10;
-    auto reg = pose::Registrar::create(f.model, kW, kH, opt, &pool);
-    REQUIRE(reg.ok());
-    const Pose start = f.perturbed(4, 0.03, 11);
-    pose::RegisterResult r;
-    REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, start, &r).ok());  // warm-up
-    test::AllocationScope scope;
-    REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(6, 0.04, 12), &r).ok());
-    CHECK(scope.count() == 0);
-    CHECK(r.iterations > 0);
+    check_allocation_free(opt, &pool);
   }
 }
 
 TEST_CASE("register: quarter-resolution registration (keyframes, render polish, verdict) allocates nothing") {
-  const Fixture& f = fixture();
   platform::ThreadPool pool(2);
   for (bool fixed_point : {false, true}) {
     pose::RegisterOptions opt;
     opt.finest_downscale = 4;
     opt.fixed_point = fixed_point;
-    auto reg = pose::Registrar::create(f.model, kW, kH, opt, &pool);
-    REQUIRE(reg.ok());
-    pose::RegisterResult r;
-    REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(4, 0.03, 11), &r).ok());  // warm-up
-    test::AllocationScope scope;
-    REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(6, 0.04, 12), &r).ok());
-    CHECK(scope.count() == 0);
-    CHECK(r.iterations > 0);
+    check_allocation_free(opt, &pool);
   }
 }
 

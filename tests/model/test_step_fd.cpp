@@ -133,24 +133,11 @@ struct FloatBackend {
   }
   Status render_fwd(const Camera& cam, const NeuralGaussians<float>& ng, float* rgb) {
     N = ng.count;
-    GaussianParams gp;
-    gp.count = N;
-    gp.means = ng.means;
-    gp.log_scales = ng.log_scales;
-    gp.quats = ng.quats;
-    gp.opacities = ng.opacities;
-    gp.colors = ng.colors;
-    return renderer.forward(cam, gp, RenderOptions{}, rgb);
+    return renderer.forward(cam, gaussian_params(ng), RenderOptions{}, rgb);
   }
   Status render_bwd(const float* v_rgb, float* v_means, float* v_log_scales, float* v_quats, float* v_opacities,
                     float* v_colors, float* v_means2d, double* v_pose) {
-    GaussianGrads g;
-    g.v_means = v_means;
-    g.v_log_scales = v_log_scales;
-    g.v_quats = v_quats;
-    g.v_opacities = v_opacities;
-    g.v_colors = v_colors;
-    g.v_means2d = v_means2d;
+    GaussianGrads g = colored_gaussian_grads(v_means, v_log_scales, v_quats, v_opacities, v_colors, v_means2d);
     GS_RETURN_IF_ERROR(renderer.backward(v_rgb, &g));
     for (int i = 0; i < 6; ++i) v_pose[i] += g.v_pose[i];
     return Status::Ok();

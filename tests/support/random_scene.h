@@ -25,6 +25,17 @@ struct SceneSpec {
   double frac_outside = 0;   // fraction of Gaussians placed beyond the image edge (Jacobian clamp)
 };
 
+// A dense opaque stack: early termination and (with saturate) the 0.99 alpha clamp.
+inline SceneSpec opaque_stack_spec() {
+  SceneSpec s;
+  s.count = 40;
+  s.min_opacity = 0.6;
+  s.max_opacity = 1.0;
+  s.min_scale = 0.2;
+  s.max_scale = 0.6;
+  return s;
+}
+
 // Rodrigues: rotation matrix (row-major) of axis-angle w.
 template <class T>
 inline void so3_exp(const T w[3], T R[9]) {

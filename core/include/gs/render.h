@@ -78,6 +78,19 @@ struct GaussianGrads {
   double v_pose[6] = {0, 0, 0, 0, 0, 0};  // (rho, phi): left twist of the world-to-camera pose
 };
 
+// The gradient outputs for Gaussians with colour input (ColoredGaussians, decoded neural Gaussians).
+inline GaussianGrads colored_gaussian_grads(float* v_means, float* v_log_scales, float* v_quats, float* v_opacities,
+                                            float* v_colors, float* v_means2d) {
+  GaussianGrads g;
+  g.v_means = v_means;
+  g.v_log_scales = v_log_scales;
+  g.v_quats = v_quats;
+  g.v_opacities = v_opacities;
+  g.v_colors = v_colors;
+  g.v_means2d = v_means2d;
+  return g;
+}
+
 struct RenderCapacity {
   size_t max_gaussians = 0;
   size_t max_isects = 0;  // Gaussian-tile pairs; 0: 16 x max_gaussians

@@ -140,7 +140,7 @@ struct Registrar::Impl {
   }
 
   // The Gaussians of the last decode, as the renderer takes them.
-  GaussianParams gaussians() const { return cloud ? cloud_decoder.params() : model::detail::gaussian_params(ws.ng); }
+  GaussianParams gaussians() const { return cloud ? cloud_decoder.params() : model::gaussian_params(ws.ng); }
 
   Status render(const Camera& cam) {
     const GaussianParams gp = gaussians();

@@ -25,10 +25,24 @@
 #include "gs/camera.h"
 #include "gs/model/decode.h"
 #include "gs/model/hybrid_model.h"
+#include "gs/render.h"
 #include "gs/simd/loss.h"
 #include "gs/status.h"
 
 namespace gs::model {
+
+// What a float Backend's render_fwd hands gs::Renderer: the decoded Gaussians (colours, no SH);
+// render_bwd's arrays go through gs::colored_gaussian_grads.
+inline GaussianParams gaussian_params(const NeuralGaussians<float>& ng) {
+  GaussianParams gp;
+  gp.count = ng.count;
+  gp.means = ng.means;
+  gp.log_scales = ng.log_scales;
+  gp.quats = ng.quats;
+  gp.opacities = ng.opacities;
+  gp.colors = ng.colors;
+  return gp;
+}
 
 template <class T>
 struct ModelParamsT {
