@@ -46,7 +46,7 @@ const char* splat_format_name(SplatFormat format) {
 }
 
 const char* supported_splat_extensions() {
-  return ".ply (3DGS), .compressed.ply (PlayCanvas), .splat (antimatter15), .spz (Niantic, versions 2 and 3)";
+  return ".ply (3DGS), .compressed.ply (PlayCanvas), .splat (antimatter15), .spz (Niantic, versions 2 to 4)";
 }
 
 Expected<SplatFormat> splat_format_from_extension(const std::string& path) {
@@ -88,7 +88,8 @@ Expected<GaussianCloud> read_gaussians(const std::string& path, SplatFormat* for
   });
 }
 
-Expected<std::vector<uint8_t>> encode_gaussians(const GaussianCloud& cloud, SplatFormat format) {
+Expected<std::vector<uint8_t>> encode_gaussians(const GaussianCloud& cloud, SplatFormat format,
+                                                const SplatWriteOptions& options) {
   switch (format) {
     case SplatFormat::kPly: {
       GS_RETURN_IF_ERROR(detail::check_cloud_for_writing(cloud, "3DGS PLY"));
@@ -98,15 +99,15 @@ Expected<std::vector<uint8_t>> encode_gaussians(const GaussianCloud& cloud, Spla
     }
     case SplatFormat::kCompressedPly: return encode_compressed_ply(cloud);
     case SplatFormat::kAntimatterSplat: return encode_antimatter_splat(cloud);
-    case SplatFormat::kSpz: return encode_spz(cloud);
+    case SplatFormat::kSpz: return encode_spz(cloud, options.spz);
   }
   return invalid_argument("unknown splat format");
 }
 
-Status write_gaussians(const std::string& path, const GaussianCloud& cloud) {
+Status write_gaussians(const std::string& path, const GaussianCloud& cloud, const SplatWriteOptions& options) {
   Expected<SplatFormat> format = splat_format_from_extension(path);
   if (!format.ok()) return format.status();
-  Expected<std::vector<uint8_t>> bytes = encode_gaussians(cloud, *format);
+  Expected<std::vector<uint8_t>> bytes = encode_gaussians(cloud, *format, options);
   if (!bytes.ok()) return Status(bytes.status().code(), path + ": " + bytes.status().message());
   return platform::write_file_atomic(path, bytes->data(), bytes->size());
 }

@@ -6,7 +6,7 @@
 //   3DGS PLY (.ply)            248 at SH degree 3 everything, float32 (exact)
 //   antimatter15 .splat        32                 float32 position and scale, 8-bit colour, alpha and
 //                                                 rotation; SH degree 0 only
-//   Niantic .spz (v2, v3)      ~12-30, gzip       24-bit fixed-point position, 8-bit everything else,
+//   Niantic .spz (v2, v3, v4)  ~12-30, gzip/ZSTD  24-bit fixed-point position, 8-bit everything else,
 //                                                 SH degree 0-3 at 5 (degree 1) / 4 (higher) bits
 //   PlayCanvas compressed.ply  16 + SH bytes      per 256-splat chunk bounds, 11/10/11-bit position
 //                                                 and log scale, 8-bit colour and alpha, smallest-
@@ -18,7 +18,7 @@
 // back: a cloud comes back in the frame it was written in, as in Niantic's and PlayCanvas's tools.
 //
 // Every parser validates what it reads before allocating (counts against the bytes present, sizes
-// capped, the gzip output capped by the size the header's count implies) and refuses non-finite
+// capped, the gzip/ZSTD output capped by the size the header's count implies) and refuses non-finite
 // values; messages name the source, the record or field, and what was expected. Writers refuse a
 // cloud whose arrays do not match its size or hold NaN/Inf, and write atomically.
 #pragma once
@@ -41,9 +41,13 @@ Expected<GaussianCloud> read_antimatter_splat(const std::string& path);
 Expected<std::vector<uint8_t>> encode_antimatter_splat(const GaussianCloud& cloud);
 Status write_antimatter_splat(const std::string& path, const GaussianCloud& cloud);
 
-// ---- Niantic .spz (gzip; versions 2 and 3 read, 2 or 3 written) --------------------------------
+// ---- Niantic .spz (versions 2, 3: one gzip stream, zlib; 4: ZSTD streams, libzstd) -------------
 struct SpzWriteOptions {
-  int version = 3;        // 3: smallest-three rotations (4 bytes); 2: x, y, z with w >= 0 (3 bytes)
+  // 4: one ZSTD frame per attribute, the default of Niantic's library and splat-transform 3, and
+  // 2-5 % smaller; 3: the gzip stream older readers (splat-transform 2, viewers before v4) need;
+  // versions 3 and 4 hold the same bytes, smallest-three rotations (4 bytes); 2: x, y, z with
+  // w >= 0 (3 bytes), gzip.
+  int version = 4;
   int sh1_bits = 5;       // precision kept for SH degree-1 coefficients (1..8; Niantic's default)
   int sh_rest_bits = 4;   // for degrees 2 and 3 (1..8)
 };
@@ -51,8 +55,11 @@ Expected<GaussianCloud> parse_spz(const uint8_t* data, size_t size, const std::s
 Expected<GaussianCloud> read_spz(const std::string& path);
 Expected<std::vector<uint8_t>> encode_spz(const GaussianCloud& cloud, const SpzWriteOptions& options = {});
 Status write_spz(const std::string& path, const GaussianCloud& cloud, const SpzWriteOptions& options = {});
-// False when hbgs was built without zlib (some cross builds): the spz functions then fail with
-// kUnsupported.
+// Whether this build reads and writes a version: 2 and 3 need zlib, 4 needs libzstd (cross builds
+// without the target libraries have neither); the spz functions fail with kUnsupported, saying
+// which library is missing, for a version this build lacks.
+bool spz_version_supported(int version);
+// All three versions (zlib and libzstd both found).
 bool spz_supported();
 
 // ---- PlayCanvas compressed.ply -----------------------------------------------------------------
@@ -86,8 +93,13 @@ Expected<GaussianCloud> read_gaussians(const std::string& path, SplatFormat* for
 
 // The format a path's extension names (".compressed.ply" before ".ply"; case-insensitive).
 Expected<SplatFormat> splat_format_from_extension(const std::string& path);
-Expected<std::vector<uint8_t>> encode_gaussians(const GaussianCloud& cloud, SplatFormat format);
+// Options of the formats that have any (the others ignore them).
+struct SplatWriteOptions {
+  SpzWriteOptions spz;
+};
+Expected<std::vector<uint8_t>> encode_gaussians(const GaussianCloud& cloud, SplatFormat format,
+                                                const SplatWriteOptions& options = {});
 // Writes by the path's extension, atomically; an unknown extension is refused with the list.
-Status write_gaussians(const std::string& path, const GaussianCloud& cloud);
+Status write_gaussians(const std::string& path, const GaussianCloud& cloud, const SplatWriteOptions& options = {});
 
 }  // namespace gs::io
