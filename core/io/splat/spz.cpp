@@ -364,7 +364,8 @@ Status gzip(const std::vector<uint8_t>& in, std::vector<uint8_t>* out) {
 constexpr size_t kPlainHeaderBytes = 32;  // v4: in the clear
 constexpr size_t kTocEntryBytes = 16;
 const char* const kAttributeNames[kAttributeCount] = {"positions", "alphas", "colours", "scales", "rotations", "SH"};
-// ZSTD level of the version-4 writer: Niantic's own (12). MEASURED-LEVEL-NOTE
+// ZSTD level of the version-4 writer: Niantic's own, 12. On a 73k-splat SH-3 export of a trained
+// model: level 3 0.3 % larger, level 19 0.7 % smaller at 3x the time (README "Splat file formats").
 constexpr int kZstdLevel = 12;
 
 // ZSTD's best ratio is far above deflate's (a 128 kB block of one byte value costs 4 bytes), so the
