@@ -57,21 +57,23 @@ if len(la) != len(lb) or first is not None:
     problems.append(f"training losses differ (lengths {len(la)}/{len(lb)}, first at iteration {first})")
 print(f"training losses: {len(la)} iterations compared, last {la[-1]!r} vs {lb[-1]!r}")
 
-# Figures that must not change (times may).
-skip = {"train_seconds", "median_iteration_ms", "render_ms_median", "ms", "seconds", "time", "render_ms"}
-def strip(x):
+# Figures that must not change: times may, and paths name each side's own folder.
+def strip(x, side):
     if isinstance(x, dict):
-        return {k: strip(v) for k, v in x.items() if k not in skip and not k.endswith("_ms") and not k.endswith("seconds")}
+        return {k: strip(v, side) for k, v in x.items()
+                if not (k.endswith("_ms") or k.endswith("ms_median") or k == "ms" or "seconds" in k)}
     if isinstance(x, list):
-        return [strip(v) for v in x]
+        return [strip(v, side) for v in x]
+    if isinstance(x, str):
+        return x.replace(f"{work}/{side}/", f"{work}/SIDE/")
     return x
 for rel in ["run/results.json", "run/per_view.json", "eval/results.json", "eval/per_view.json"]:
-    ja, jb = strip(json.load(open(f"{work}/old/{rel}"))), strip(json.load(open(f"{work}/new/{rel}")))
+    ja, jb = strip(json.load(open(f"{work}/old/{rel}")), "old"), strip(json.load(open(f"{work}/new/{rel}")), "new")
     if ja != jb:
         problems.append(f"{rel}: figures differ")
     print(f"{rel}: compared")
-ra = strip(json.load(open(f"{work}/old/render/render.json")))
-rb = strip(json.load(open(f"{work}/new/render/render.json")))
+ra = strip(json.load(open(f"{work}/old/render/render.json")), "old")
+rb = strip(json.load(open(f"{work}/new/render/render.json")), "new")
 if ra != rb:
     problems.append("render/render.json: figures differ")
 # Images: the test renders of the run and the render command's PNGs, byte for byte.
