@@ -205,6 +205,21 @@ void attribute_offsets(const Header& h, size_t offsets[kAttributeCount]) {
   }
 }
 
+// The attribute bytes a header declares, refused before anything is allocated for them when they
+// exceed `limit` (the most the file's compressed bytes can expand to: a bomb, or a corrupt count)
+// or this build's memory.
+Expected<uint64_t> declared_body_bytes(const Header& h, uint64_t limit, size_t file_size, const std::string& src) {
+  const uint64_t body_bytes = uint64_t(h.count) * bytes_per_splat(h.version, h.sh_degree);
+  if (body_bytes > limit)
+    return parse_error(src + ": the header declares " + std::to_string(h.count) + " splats (" +
+                       std::to_string(body_bytes) + " bytes), more than " + std::to_string(file_size) +
+                       " compressed bytes can hold (truncated file or corrupt count)");
+  GS_RETURN_IF_ERROR(detail::check_cloud_fits(h.count, h.sh_degree, src));
+  if (body_bytes >= std::numeric_limits<size_t>::max())
+    return unsupported(src + ": " + std::to_string(body_bytes) + " bytes do not fit in this build's memory");
+  return body_bytes;
+}
+
 // The splats of a decompressed body; every value checked finite.
 Expected<GaussianCloud> finish(const Header& h, const uint8_t* body, const std::string& src) {
   size_t offsets[kAttributeCount];
@@ -296,16 +311,10 @@ Expected<GaussianCloud> parse_gzip(const uint8_t* data, size_t size, const std::
   GS_RETURN_IF_ERROR(parse_common_fields(head + 8, src, &h));
 
   // Deflate expands a byte to at most 1032 (its best ratio, runs of one value), so a header whose
-  // count needs more than that is refused before anything is allocated for it (a gzip bomb, or a
-  // corrupt count).
-  const uint64_t body_bytes = uint64_t(h.count) * bytes_per_splat(h.version, h.sh_degree);
-  if (body_bytes + kGzipHeaderBytes > 1032 * uint64_t(size) + 1024)
-    return parse_error(src + ": the header declares " + std::to_string(h.count) + " splats (" +
-                       std::to_string(body_bytes) + " bytes), more than " + std::to_string(size) +
-                       " compressed bytes can hold (truncated file or corrupt count)");
-  GS_RETURN_IF_ERROR(detail::check_cloud_fits(h.count, h.sh_degree, src));
-  if (body_bytes >= std::numeric_limits<size_t>::max())
-    return unsupported(src + ": " + std::to_string(body_bytes) + " bytes do not fit in this build's memory");
+  // count needs more than that is refused before anything is allocated for it.
+  Expected<uint64_t> declared = declared_body_bytes(h, 1032 * uint64_t(size) + 1024 - kGzipHeaderBytes, size, src);
+  if (!declared.ok()) return declared.status();
+  const uint64_t body_bytes = *declared;
   std::vector<uint8_t> body(size_t(body_bytes) + 1);  // + 1: a byte past the declared end means more data
   GS_RETURN_IF_ERROR(gz.read(body.data(), body.size(), &got, src));
   if (got < body_bytes)
@@ -401,14 +410,9 @@ Expected<GaussianCloud> parse_zstd(const uint8_t* data, size_t size, const std::
                        std::to_string(streams * kTocEntryBytes) + " bytes) is not inside the header's 32 bytes to the file's " +
                        std::to_string(size));
 
-  const uint64_t body_bytes = uint64_t(h.count) * bytes_per_splat(h.version, h.sh_degree);
-  if (body_bytes > kMaxZstdRatio * uint64_t(size))
-    return parse_error(src + ": the header declares " + std::to_string(h.count) + " splats (" +
-                       std::to_string(body_bytes) + " bytes), more than " + std::to_string(size) +
-                       " compressed bytes can hold (truncated file or corrupt count)");
-  GS_RETURN_IF_ERROR(detail::check_cloud_fits(h.count, h.sh_degree, src));
-  if (body_bytes >= std::numeric_limits<size_t>::max())
-    return unsupported(src + ": " + std::to_string(body_bytes) + " bytes do not fit in this build's memory");
+  Expected<uint64_t> declared = declared_body_bytes(h, kMaxZstdRatio * uint64_t(size), size, src);
+  if (!declared.ok()) return declared.status();
+  const uint64_t body_bytes = *declared;
 
   // The table: every size as the header implies, the frames exactly filling the rest of the file.
   uint64_t frame_at[kAttributeCount] = {}, frame_bytes[kAttributeCount] = {};
