@@ -29,7 +29,7 @@
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
-#include "gs/pose/register.h"
+#include "gs/model/register.h"
 #include "svg_plot.h"
 
 #ifndef GS_BENCH_DEFAULT_DATASET

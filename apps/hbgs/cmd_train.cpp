@@ -13,7 +13,7 @@
 #include "gs/io/image.h"
 #include "gs/jobs/run_folder.h"
 #ifndef HBGS_DEVICE
-#include "gs/jobs/colmap_pose_init.h"
+#include "colmap_pose_init.h"
 #endif
 #include "gs/metrics/lpips.h"
 
@@ -103,7 +103,7 @@ int run_train(const gs::jobs::TrainRunOptions& options, bool quiet, gs::jobs::Tr
   gs::jobs::TrainRunOptions a = options;
 #ifndef HBGS_DEVICE
   // --pose-init sfm: COLMAP through the capture library (hbgs-device has none: the job refuses it).
-  if (!a.sfm_pose_init) a.sfm_pose_init = &gs::jobs::colmap_pose_initializer();
+  if (!a.sfm_pose_init) a.sfm_pose_init = &colmap_pose_initializer();
 #endif
   ProgressPrinter printer(quiet);
   gs::jobs::TrainRunSummary s;

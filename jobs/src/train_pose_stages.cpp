@@ -8,8 +8,8 @@
 
 #include "gs/io/composite.h"
 #include "gs/jobs/run_folder.h"
-#include "gs/pose/point_alignment.h"
-#include "gs/pose/register.h"
+#include "gs/model/point_alignment.h"
+#include "gs/model/register.h"
 #include "json_util.h"
 #include "text_util.h"
 #include "train_session_state.h"

@@ -15,9 +15,10 @@
 // and bench_train and the examples start from the same struct, so all run one configuration.
 //
 // Structure from motion (pose_init "sfm") runs COLMAP through the capture library, which the jobs
-// library does not link (the on-device set base..jobs has no capture): the caller passes an
-// SfmPoseInitializer. gs::jobs::colmap_pose_initializer() (gs/jobs/colmap_pose_init.h, library
-// hbgs::jobs_sfm) is the one `hbgs` passes; `hbgs-device` passes none and refuses --pose-init sfm.
+// library does not link (the on-device set base..jobs has no capture): the program passes an
+// SfmPoseInitializer (TrainRunOptions::sfm_pose_init). `hbgs` passes one made of gs_capture's
+// choose_sfm_images and init_poses_by_sfm (apps/hbgs/colmap_pose_init.cpp); `hbgs-device` passes
+// none and refuses --pose-init sfm.
 #pragma once
 
 #include <cstdint>

@@ -1,16 +1,27 @@
 // SPDX-License-Identifier: MIT
-// The COLMAP pose initialiser of the training job (gs/jobs/colmap_pose_init.h): the training job's
-// SfmPoseInitializer made of gs_capture's image choice (sfm_images.h) and SfM initialisation
+// The COLMAP pose initialiser of `hbgs train --pose-init sfm` (colmap_pose_init.h): the training
+// job's SfmPoseInitializer made of gs_capture's image choice (sfm_images.h) and SfM initialisation
 // (sfm_pose_init.h).
-#include "gs/jobs/colmap_pose_init.h"
+#include "colmap_pose_init.h"
 
 #include "gs/capture/colmap_sfm.h"
 #include "gs/capture/sfm_images.h"
 #include "gs/capture/sfm_pose_init.h"
 
-namespace gs::jobs {
+namespace hbgs::cli {
 
 namespace {
+
+using gs::Camera;
+using gs::Expected;
+using gs::Status;
+using gs::jobs::SfmPoseInitializer;
+using gs::jobs::SfmPoseInitRequest;
+using gs::jobs::SfmPoseInitResult;
+using gs::jobs::TrainEvent;
+using gs::jobs::TrainProgressFn;
+namespace capture = gs::capture;
+namespace io = gs::io;
 
 void say_text(const TrainProgressFn& say, TrainEvent::Kind kind, std::string message) {
   TrainEvent e;
@@ -38,7 +49,7 @@ class ColmapPoseInitializer final : public SfmPoseInitializer {
     so.colmap.threads = request.threads;
     Expected<capture::SfmImages> sfm_images =
         capture::choose_sfm_images(request.dataset_folder, request.sfm_images, request.views, so.colmap.max_image_size);
-    if (!sfm_images.ok()) return invalid_argument("--sfm-images: " + sfm_images.status().message());
+    if (!sfm_images.ok()) return gs::invalid_argument("--sfm-images: " + sfm_images.status().message());
     std::vector<Camera> cams = sfm_images->cameras;
     std::vector<const io::Image8*> images;
     for (size_t i = 0; i < request.views.size(); ++i)
@@ -81,4 +92,4 @@ const SfmPoseInitializer& colmap_pose_initializer() {
   return initializer;
 }
 
-}  // namespace gs::jobs
+}  // namespace hbgs::cli

@@ -15,8 +15,8 @@
 #include "gs/io/colmap.h"
 #include "gs/io/image.h"
 #include "gs/model/image_features.h"
+#include "gs/model/register.h"
 #include "gs/model/trainer.h"
-#include "gs/pose/register.h"
 #include "gs/render.h"
 
 namespace gs::model {

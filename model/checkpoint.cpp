@@ -71,7 +71,7 @@ Status Trainer::load_checkpoint(const std::string& path) {
   if (version != kCheckpointVersion && version != 2)
     return unsupported(path + ": checkpoint format version " + std::to_string(version) + ", this hbgs reads versions 2 and " +
                        std::to_string(kCheckpointVersion) + (version == 1 ? " (version 1 predates pose optimisation; restart the run)" : ""));
-  if (bytes.size() < 8 || detail::fnv1a64(bytes.data(), bytes.size() - 8) != io::detail::load_u64(bytes.data() + bytes.size() - 8))
+  if (bytes.size() < 8 || detail::fnv1a64(bytes.data(), bytes.size() - 8) != bytes::load_u64(bytes.data() + bytes.size() - 8))
     return parse_error(path + ": checksum mismatch (the checkpoint is truncated or corrupt)");
   const uint64_t model_size = r.u64("the model size");
   if (!r.status().ok()) return r.status();

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
-// Registration of a view against a frozen model (see gs/pose/register.h): pyramid, per-level
+// Registration of a view against a frozen model (see gs/model/register.h): pyramid, per-level
 // decoding, Levenberg-Marquardt or Adam on the pose twist, best-pose bookkeeping and the verdict.
-#include "gs/pose/register.h"
+#include "gs/model/register.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -9,8 +9,8 @@
 #include <cstring>
 
 #include "pose_solve.h"
-#include "../../model/cloud_decode.h"
-#include "../../model/float_backend.h"
+#include "cloud_decode.h"
+#include "float_backend.h"
 #include "gs/io/image.h"
 #include "gs/model/step_graph.h"
 #include "gs/optim/adam.h"

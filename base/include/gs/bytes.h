@@ -1,39 +1,15 @@
 // SPDX-License-Identifier: MIT
-// Private helpers shared by the gs_io sources: path joining, little-endian byte access that does
-// not depend on the host's byte order, and the exception-to-Status guard used at every public
-// entry point (IO code may throw internally, e.g. std::bad_alloc, but never past the API).
+// Little-endian byte access that does not depend on the host's byte order: the readers and writers
+// of every binary file hbgs handles (COLMAP, PLY, splat formats, model and checkpoint files).
 #pragma once
 
 #include <cstdint>
 #include <cstring>
-#include <exception>
-#include <string>
-#include <utility>
 #include <vector>
 
-#include "gs/status.h"
+namespace gs::bytes {
 
-namespace gs::io::detail {
-
-inline std::string join_path(const std::string& a, const std::string& b) {
-  if (a.empty()) return b;
-  if (a.back() == '/') return a + b;
-  return a + "/" + b;
-}
-
-// Runs f() and turns any escaping exception into a kInternal Status naming `what`.
-// F returns Status or Expected<T>; both are constructible from a Status.
-template <class F>
-auto guarded(const std::string& what, F&& f) -> decltype(f()) {
-  try {
-    return f();
-  } catch (const std::bad_alloc&) {
-    return Status(StatusCode::kInternal, what + ": out of memory");
-  } catch (const std::exception& e) {
-    return Status(StatusCode::kInternal, what + ": " + e.what());
-  }
-}
-
+// The `bytes`-byte little-endian unsigned value at p (bytes in 1..8).
 inline uint64_t load_le(const uint8_t* p, int bytes) {
   uint64_t v = 0;
   for (int i = bytes - 1; i >= 0; --i) v = (v << 8) | p[i];
@@ -54,6 +30,7 @@ inline double load_f64(const uint8_t* p) {
   return d;
 }
 
+// Appends the low `bytes` bytes of v, least significant first.
 inline void append_le(std::vector<uint8_t>& out, uint64_t v, int bytes) {
   for (int i = 0; i < bytes; ++i) out.push_back(uint8_t(v >> (8 * i)));
 }
@@ -70,4 +47,4 @@ inline void append_f64(std::vector<uint8_t>& out, double d) {
   append_le(out, bits, 8);
 }
 
-}  // namespace gs::io::detail
+}  // namespace gs::bytes

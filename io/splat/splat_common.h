@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Private helpers of the splat format readers and writers (core/io/splat/): the limits, the
+// Private helpers of the splat format readers and writers (io/splat/): the limits, the
 // 8-bit colour/alpha conventions the formats share, and the checks every writer and reader runs
 // on a GaussianCloud (array sizes, finiteness, usable quaternions).
 #pragma once

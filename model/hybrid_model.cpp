@@ -184,7 +184,7 @@ Expected<HybridModel> deserialize_model(const uint8_t* data, size_t size, const 
   if (!valid.ok()) return parse_error(source + ": invalid configuration: " + valid.message());
   // Verify the checksum (of a whole file) before sizing anything from the header, so a corrupt
   // count cannot ask for gigabytes; then refuse budgets whose arrays would not fit a sane amount of memory.
-  if (!consumed && (size < 8 || detail::fnv1a64(data, size - 8) != io::detail::load_u64(data + size - 8)))
+  if (!consumed && (size < 8 || detail::fnv1a64(data, size - 8) != bytes::load_u64(data + size - 8)))
     return parse_error(source + ": checksum mismatch (the file is truncated or corrupt)");
   const uint64_t row_floats = 3 + uint64_t(c.k) * 3 + 6 + uint64_t(c.feature_dim) + uint64_t(kImageRawDim);
   if (uint64_t(c.anchor_capacity()) * row_floats * 4 > (uint64_t(8) << 30))

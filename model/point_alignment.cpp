@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Photometric alignment of camera poses to fixed SfM points (see gs/pose/point_alignment.h).
-#include "gs/pose/point_alignment.h"
+// Photometric alignment of camera poses to fixed SfM points (see gs/model/point_alignment.h).
+#include "gs/model/point_alignment.h"
 
 #include <algorithm>
 #include <cmath>

@@ -104,7 +104,7 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
     return unsupported(source + ": compact model format version " + std::to_string(version) + ", but this hbgs reads version " +
                        std::to_string(kCompactFileVersion) + " (remake it with hbgs compact)");
   // The checksum covers the whole file and is verified before any size is trusted.
-  if (size < 20 || detail::fnv1a64(data, size - 8) != io::detail::load_u64(data + size - 8))
+  if (size < 20 || detail::fnv1a64(data, size - 8) != bytes::load_u64(data + size - 8))
     return parse_error(source + ": checksum mismatch (the file is truncated or corrupt)");
   const size_t body_end = size - 8;
   CompactModel m;

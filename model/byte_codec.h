@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "../io/io_util.h"
+#include "gs/bytes.h"
 #include "gs/hash.h"
 #include "gs/model/hybrid_model.h"
 #include "gs/random.h"
@@ -20,11 +20,11 @@ class ByteWriter {
  public:
   std::vector<uint8_t> bytes;
   void u8(uint8_t v) { bytes.push_back(v); }
-  void u32(uint32_t v) { io::detail::append_u32(bytes, v); }
-  void u64(uint64_t v) { io::detail::append_u64(bytes, v); }
+  void u32(uint32_t v) { bytes::append_u32(bytes, v); }
+  void u64(uint64_t v) { bytes::append_u64(bytes, v); }
   void i32(int32_t v) { u32(uint32_t(v)); }
-  void f32(float v) { io::detail::append_f32(bytes, v); }
-  void f64(double v) { io::detail::append_f64(bytes, v); }
+  void f32(float v) { bytes::append_f32(bytes, v); }
+  void f64(double v) { bytes::append_f64(bytes, v); }
   void raw(const void* p, size_t n) {
     const uint8_t* b = static_cast<const uint8_t*>(p);
     bytes.insert(bytes.end(), b, b + n);
@@ -35,7 +35,7 @@ class ByteWriter {
   template <class T>
   void pod_array(const std::vector<T>& v) {  // count + elements, little-endian per element
     u64(v.size());
-    for (const T& x : v) io::detail::append_le(bytes, uint64_t(x), int(sizeof(T)));
+    for (const T& x : v) bytes::append_le(bytes, uint64_t(x), int(sizeof(T)));
   }
 };
 
@@ -75,7 +75,7 @@ class ByteReader {
       need(n_ - off_ + 1, what);
       return false;
     }
-    for (size_t i = 0; i < count; ++i) dst[i] = io::detail::load_f32(p_ + off_ + 4 * i);
+    for (size_t i = 0; i < count; ++i) dst[i] = bytes::load_f32(p_ + off_ + 4 * i);
     off_ += 4 * count;
     return true;
   }
@@ -107,7 +107,7 @@ class ByteReader {
 
  private:
   uint64_t take(int bytes) {
-    const uint64_t v = io::detail::load_le(p_ + off_, bytes);
+    const uint64_t v = bytes::load_le(p_ + off_, bytes);
     off_ += size_t(bytes);
     return v;
   }
