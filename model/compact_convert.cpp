@@ -24,7 +24,8 @@ HybridModel select_rows(const HybridModel& m, const std::vector<size_t>& keep) {
   o.scene_extent = m.scene_extent;
   o.anchor_count = keep.size();
   for (int i = 0; i < kMlpCount; ++i) o.mlps[i] = m.mlps[i];
-  const size_t K = size_t(m.config.k), F = size_t(m.config.feature_dim), R = uses_image_features(m.config.image_features) ? size_t(kImageRawDim) : 0;
+  const size_t K = size_t(m.config.k), F = size_t(m.config.feature_dim);
+  const size_t R = uses_image_features(m.config.image_features) ? size_t(kImageRawDim) : 0;
   auto gather = [&](const std::vector<float>& src, size_t w, std::vector<float>* dst) {
     dst->resize(keep.size() * w);
     for (size_t i = 0; i < keep.size(); ++i) std::copy_n(src.begin() + std::ptrdiff_t(keep[i] * w), w, dst->begin() + std::ptrdiff_t(i * w));
