@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // bench_entropy: the compact model file's entropy coder (static rANS per byte stream,
-// gs/model/compact_model.h) against libzstd at levels 3 and 19, on the byte streams a real compact
+// gs/model/byte_rans.h) against libzstd at levels 3 and 19, on the byte streams a real compact
 // model file codes. The streams are rebuilt from the loaded model exactly as serialize_compact
 // lays them out (positions 9, offset scales 2, offsets 3k, log-scales 12, features F, image
 // features 13 in mode paper; one byte per anchor each). Reported per coder: total coded bytes,
@@ -20,6 +20,7 @@
 
 #include "bench_common.h"
 #include "bench_harness.h"
+#include "gs/model/byte_rans.h"
 #include "gs/model/compact_model.h"
 
 namespace gs::bench {
@@ -50,7 +51,7 @@ std::vector<Stream> coded_streams(const model::CompactModel& m) {
   for (size_t ch = 0; ch < 6; ++ch)
     for (int b = 0; b < 2; ++b) add("log-scales", [&](size_t r) { return m.log_scales[6 * r + ch] >> (8 * b); });
   for (size_t ch = 0; ch < F; ++ch) add("features", [&](size_t r) { return m.features[r * F + ch]; });
-  if (m.image_raw.size() == M * size_t(model::kImageRawDim))
+  if (model::uses_image_features(m.config.image_features))
     for (size_t ch = 0; ch < size_t(model::kImageRawDim); ++ch)
       add("image features", [&](size_t r) { return m.image_raw[r * size_t(model::kImageRawDim) + ch]; });
   return out;

@@ -16,7 +16,7 @@
 
 #include "bench_common.h"
 #include "gs/jobs/run_folder.h"
-#include "gs/model/trainer.h"
+#include "gs/model/model_renderer.h"
 #include "gs/platform/thread_pool.h"
 
 namespace {

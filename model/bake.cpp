@@ -11,7 +11,7 @@
 
 #include "float_backend.h"
 #include "gs/model/decode.h"
-#include "gs/model/trainer.h"
+#include "gs/model/model_renderer.h"
 #include "gs/optim/adam.h"
 #include "gs/platform/clock.h"
 #include "gs/random.h"

@@ -1,12 +1,10 @@
 // SPDX-License-Identifier: MIT
 // Evaluation of a trained model on held-out views: ModelRenderer -> clamp -> 8 bits -> PSNR / SSIM
-// / LPIPS-Alex against the 8-bit ground truth, optional PNGs, and the 3DGS JSON files (written by
-// hand so gs_model needs no JSON library).
+// / LPIPS-Alex against the 8-bit ground truth, optional PNGs; the figures as an EvalResult (the
+// jobs write the 3DGS JSON files).
 #include "gs/model/evaluate.h"
 
 #include <algorithm>
-#include <charconv>
-#include <cstdio>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -16,6 +14,7 @@
 #include "gs/io/image.h"
 #include "gs/metrics/image_metrics.h"
 #include "gs/metrics/lpips.h"
+#include "gs/model/model_renderer.h"
 #include "gs/model/trainer.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
@@ -63,32 +62,6 @@ void mask_metrics(const uint8_t* render, const uint8_t* gt, const uint8_t* mask,
   m->psnr_masked = weight > 0 ? (se > 0 ? -10.0 * std::log10(se / weight) : 99.0) : -1.0;
   m->alpha_mae = abs_diff / double(n);
   m->alpha_iou = either ? double(both) / double(either) : 1.0;
-}
-
-// Shortest text that reads back as the same double; JSON has no Inf/NaN, so those become null.
-std::string json_number(double x) {
-  if (!std::isfinite(x)) return "null";
-  char buf[64];
-  const std::to_chars_result r = std::to_chars(buf, buf + sizeof(buf), x);
-  return std::string(buf, r.ptr);
-}
-
-std::string json_string(const std::string& s) {
-  std::string out = "\"";
-  for (const char c : s) {
-    const unsigned char u = static_cast<unsigned char>(c);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (u < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof(buf), "\\u%04x", u);
-      out += buf;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
 }
 
 }  // namespace
@@ -226,35 +199,6 @@ Expected<EvalResult> evaluate_views(Trainer& trainer, const std::vector<const io
       [&](const Camera& cam, float* rgb, size_t* n, float* alpha) {
         return trainer.render(cam, options.render.background, rgb, n, alpha);
       });
-}
-
-std::string results_json(const EvalResult& r, const std::string& method, const std::string& extra_json_members) {
-  std::string s = "{\n  " + json_string(method) + ": {\n";
-  s += "    \"SSIM\": " + json_number(r.ssim) + ",\n";
-  s += "    \"PSNR\": " + json_number(r.psnr);
-  if (r.lpips >= 0) s += ",\n    \"LPIPS\": " + json_number(r.lpips);
-  if (r.psnr_masked >= 0) {
-    s += ",\n    \"PSNR_masked\": " + json_number(r.psnr_masked);
-    s += ",\n    \"alpha_MAE\": " + json_number(r.alpha_mae) + ",\n    \"alpha_IoU\": " + json_number(r.alpha_iou);
-  }
-  if (!extra_json_members.empty()) s += ",\n    " + extra_json_members;
-  return s + "\n  }\n}\n";
-}
-
-std::string per_view_json(const EvalResult& r, const std::string& method) {
-  auto metric = [&r](const char* key, double ViewMetrics::*field) {
-    std::string s = std::string("    \"") + key + "\": {";
-    for (size_t i = 0; i < r.views.size(); ++i)
-      s += (i ? ",\n      " : "\n      ") + json_string(r.views[i].name) + ": " + json_number(r.views[i].*field);
-    return s + (r.views.empty() ? "}" : "\n    }");
-  };
-  std::string s = "{\n  " + json_string(method) + ": {\n";
-  s += metric("SSIM", &ViewMetrics::ssim) + ",\n" + metric("PSNR", &ViewMetrics::psnr);
-  if (r.lpips >= 0) s += ",\n" + metric("LPIPS", &ViewMetrics::lpips);
-  if (r.psnr_masked >= 0)
-    s += ",\n" + metric("PSNR_masked", &ViewMetrics::psnr_masked) + ",\n" + metric("alpha_MAE", &ViewMetrics::alpha_mae) +
-         ",\n" + metric("alpha_IoU", &ViewMetrics::alpha_iou);
-  return s + "\n  }\n}\n";
 }
 
 }  // namespace gs::model

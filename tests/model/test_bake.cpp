@@ -13,6 +13,7 @@
 
 #include "gs/model/bake.h"
 #include "gs/model/evaluate.h"
+#include "gs/model/model_renderer.h"
 #include "gs/model/trainer.h"
 #include "gs/pose/pose.h"
 #include "gs/model/register.h"

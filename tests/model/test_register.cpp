@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "gs/io/image.h"
-#include "gs/model/trainer.h"
+#include "gs/model/model_renderer.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
 #include "gs/model/register.h"

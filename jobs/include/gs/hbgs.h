@@ -42,6 +42,7 @@
 #include "gs/model/compact_model.h"
 #include "gs/model/evaluate.h"
 #include "gs/model/hybrid_model.h"
+#include "gs/model/model_renderer.h"
 #include "gs/model/trainer.h"
 #include "gs/model/register.h"
 #include "gs/platform/thread_pool.h"

@@ -99,22 +99,15 @@ HybridModel dequantize(const CompactModel& compact);
 uint16_t float_to_half(float f);
 float half_to_float(uint16_t h);
 
-// File: "HBGSCMPT", version, header, rANS-coded channel streams, raw MLP blocks, FNV-1a 64
-// trailer (verified before any array is sized). Every count is checked against the configuration
-// and the bytes present; errors name the file, the field and what was expected.
+// File: "HBGSCMPT", version, header, channel streams coded with byte rANS (gs/model/byte_rans.h),
+// raw MLP blocks, FNV-1a 64 trailer (verified before any array is sized). Every count is checked
+// against the configuration and the bytes present; errors name the file, the field and what was
+// expected.
 std::vector<uint8_t> serialize_compact(const CompactModel& model);
 Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, const std::string& source);
 Status save_compact(const CompactModel& model, const std::string& path);  // atomic
 Expected<CompactModel> load_compact(const std::string& path);
 // True when the bytes start with the compact magic.
 bool is_compact_file(const uint8_t* data, size_t size);
-
-namespace detail {
-// Static rANS over bytes (14-bit probabilities, 32-bit state, byte renormalisation): the encoded
-// stream holds its frequency table and payload; decode checks every bound and the final state.
-void rans_encode_bytes(const uint8_t* symbols, size_t n, std::vector<uint8_t>* out);
-// Decodes exactly n symbols from data[*pos ..], advancing *pos; false (with *error) on malformed input.
-bool rans_decode_bytes(const uint8_t* data, size_t size, size_t* pos, size_t n, uint8_t* symbols, std::string* error);
-}  // namespace detail
 
 }  // namespace gs::model

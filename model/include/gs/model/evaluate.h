@@ -3,7 +3,8 @@
 // on the model's background, quantise to 8 bits, then PSNR, SSIM and (when weights are given)
 // LPIPS-Alex against the 8-bit ground truth (a masked view's photo composited on the same
 // background, gs/io/composite.h), and for masked views PSNR inside the mask and the rendered alpha
-// against the mask; optional PNG output; results in the 3DGS results.json / per_view.json schema.
+// against the mask; optional PNG output. The figures come back as data (EvalResult); the jobs
+// write them as the 3DGS results.json / per_view.json (gs::jobs::write_eval_files).
 #pragma once
 
 #include <cstddef>
@@ -12,13 +13,15 @@
 
 #include "gs/io/colmap.h"
 #include "gs/model/hybrid_model.h"
-#include "gs/model/trainer.h"
+#include "gs/model/model_renderer.h"
 #include "gs/status.h"
 
 namespace gs::metrics { class LpipsAlex; }
 namespace gs::platform { class ThreadPool; }
 
 namespace gs::model {
+
+class Trainer;
 
 struct ViewMetrics {
   std::string name;
@@ -61,12 +64,5 @@ Expected<EvalResult> evaluate_views(Trainer& trainer, const std::vector<const io
 // The same for plain Gaussians (a baked model or a 3DGS scene; int8_mlp does not apply).
 Expected<EvalResult> evaluate_views(const GaussianCloud& cloud, const std::vector<const io::DatasetView*>& views,
                                     const EvalOptions& options, platform::ThreadPool* pool);
-
-// 3DGS schema: results.json = {"<method>": {"SSIM": s, "PSNR": p, "LPIPS": l}} and
-// per_view.json = {"<method>": {"SSIM": {name: s}, "PSNR": {...}, "LPIPS": {...}}}; LPIPS keys are
-// omitted when it was not computed; with masks, "PSNR_masked", "alpha_MAE" and "alpha_IoU" too. extra_json (an object's members, may be empty) is merged into
-// results.json's method object (timings, model size, LPIPS backbone label).
-std::string results_json(const EvalResult& r, const std::string& method, const std::string& extra_json_members);
-std::string per_view_json(const EvalResult& r, const std::string& method);
 
 }  // namespace gs::model
