@@ -18,7 +18,7 @@
 #include "bench_common.h"
 #include "gs/jobs/run_folder.h"
 #include "gs/metrics/image_metrics.h"
-#include "gs/model/trainer.h"
+#include "gs/model/model_renderer.h"
 #include "gs/platform/thread_pool.h"
 
 namespace {

@@ -30,7 +30,7 @@
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
-#include "gs/pose/register.h"
+#include "gs/model/register.h"
 
 #ifndef GS_BENCH_DEFAULT_DATASET
 #define GS_BENCH_DEFAULT_DATASET "../shared/data/snowmiku_plush"

@@ -6,14 +6,33 @@ include(GsXsimd)
 
 find_path(STB_INCLUDE_DIR stb_image.h PATH_SUFFIXES stb REQUIRED)
 
-# zlib (Debian zlib1g-dev) for .spz files; without it (a cross build with no target zlib) gs_io
-# still builds and its .spz functions report that they are unavailable.
-option(GS_WITH_ZLIB "Read and write .spz splat files (zlib)" ON)
+# zlib (Debian zlib1g-dev) for .spz versions 2 and 3 (gzip) and libzstd (libzstd-dev) for version
+# 4 (ZSTD streams); without them (a cross build with no target libraries) gs_io still builds and its
+# .spz functions report, per version, which library this build lacks.
+option(GS_WITH_ZLIB "Read and write .spz splat files versions 2 and 3 (zlib)" ON)
 if(GS_WITH_ZLIB)
   find_package(ZLIB QUIET)
   if(NOT ZLIB_FOUND)
-    message(STATUS "hbgs: zlib not found, .spz files are disabled")
+    message(STATUS "hbgs: zlib not found, .spz versions 2 and 3 are disabled")
     set(GS_WITH_ZLIB OFF)
+  endif()
+endif()
+# No FindZstd module ships with CMake, and Debian's zstdConfig.cmake names a host path in a cross
+# build's search, so the header and library are looked up directly (the library in the target's
+# directories only, as the toolchain files say), as FindZLIB does; the imported target is gs::zstd.
+option(GS_WITH_ZSTD "Read and write .spz splat files version 4 (libzstd)" ON)
+if(GS_WITH_ZSTD)
+  find_path(ZSTD_INCLUDE_DIR zstd.h)
+  find_library(ZSTD_LIBRARY NAMES zstd)
+  if(ZSTD_INCLUDE_DIR AND ZSTD_LIBRARY)
+    if(NOT TARGET gs::zstd)
+      add_library(gs::zstd UNKNOWN IMPORTED)
+      set_target_properties(gs::zstd PROPERTIES IMPORTED_LOCATION "${ZSTD_LIBRARY}"
+                                                INTERFACE_INCLUDE_DIRECTORIES "${ZSTD_INCLUDE_DIR}")
+    endif()
+  else()
+    message(STATUS "hbgs: libzstd not found, .spz version 4 is disabled")
+    set(GS_WITH_ZSTD OFF)
   endif()
 endif()
 

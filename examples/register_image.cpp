@@ -15,7 +15,7 @@
 #include "gs/io/colmap.h"             // gs::io::load_dataset, pose_to_colmap
 #include "gs/model/hybrid_model.h"    // gs::model::load_model
 #include "gs/platform/thread_pool.h"  // gs::platform::ThreadPool
-#include "gs/pose/register.h"         // gs::pose::Registrar
+#include "gs/model/register.h"         // gs::pose::Registrar
 
 namespace {
 

@@ -20,7 +20,7 @@
 #include "gs/io/splat_formats.h"      // gs::io::read_gaussians (any splat format)
 #include "gs/metrics/image_metrics.h"  // gs::metrics::psnr_u8
 #include "gs/model/hybrid_model.h"    // gs::model::load_model
-#include "gs/model/trainer.h"         // gs::model::ModelRenderer
+#include "gs/model/model_renderer.h"  // gs::model::ModelRenderer
 #include "gs/platform/thread_pool.h"  // gs::platform::ThreadPool
 #include "gs/render.h"                // gs::Renderer
 #include "gs/scene_init.h"            // gs::gaussians_from_points, gs::activate

@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
-// libFuzzer harness: the Niantic .spz reader. First byte even: the rest is the file (gzip
-// framing, CRC, trailing bytes, the gzip-bomb cap). Odd: the rest is the decompressed stream, which
-// the harness gzips first, so that mutations reach the header, count and field decoding behind
-// gzip's checksum.
+// libFuzzer harness: the Niantic .spz reader. First byte even: the rest is the file (v2/v3: gzip
+// framing, CRC, trailing bytes, the gzip-bomb cap; v4: the plain header, the table of contents and
+// the ZSTD frames; the v4 seeds' frames store their bytes uncompressed, so mutations reach the
+// attribute decoding). Odd: the rest is the decompressed stream of a v2/v3 file, which the harness
+// gzips first, so that mutations reach the header, count and field decoding behind gzip's checksum.
 #include <zlib.h>
 
 #include <cstdint>

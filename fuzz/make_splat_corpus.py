@@ -27,7 +27,8 @@ write("splat", "two.splat", splat_record(0) + splat_record(1))
 write("splat", "zero_rotation.splat", struct.pack("<6f8B", 0, 0, 1, 1, 1, 1, 0, 0, 0, 0, 128, 128, 128, 128))
 
 
-# Niantic .spz v2/v3: gzip of a 16-byte header and the splats attribute by attribute.
+# Niantic .spz v2/v3: gzip of a 16-byte header and the splats attribute by attribute (the raw
+# stream; the harness or the writes below gzip it).
 def spz(version, degree, n):
     dim = (degree + 1) ** 2 - 1
     body = b""
@@ -45,8 +46,36 @@ def spz(version, degree, n):
     return struct.pack("<IIIBBBB", 0x5053474E, version, n, degree, 12, 0, 0) + body
 
 
+# Niantic .spz v4: a 32-byte header in the clear, a table of contents (compressed and uncompressed
+# size per stream, uint64) and each non-empty attribute as its own ZSTD frame. The frames are
+# written here from the Zstandard format (RFC 8878) without compressing: a single-segment frame
+# header with a 4-byte content size, then one "raw" block (the bytes as they are, at most 128 kB);
+# no checksum. So the fuzzer's mutations of a stream's bytes reach the attribute decoding directly,
+# as the gzip harness's odd first byte does for v2/v3.
+def zstd_frame(data):
+    assert len(data) <= 128 * 1024
+    frame = struct.pack("<IB", 0xFD2FB528, 0xA0) + struct.pack("<I", len(data))  # FCS 4 bytes, single segment
+    return frame + struct.pack("<I", 1 | (0 << 1) | (len(data) << 3))[:3] + data  # block header: last, raw, size
+
+
+def spz_v4(degree, n):
+    legacy = spz(3, degree, n)  # v3 holds the same attribute bytes after its 16-byte header
+    sizes = [9 * n, n, 3 * n, 3 * n, 4 * n, 3 * ((degree + 1) ** 2 - 1) * n]
+    streams, at = [], 16
+    for size in sizes:
+        if size:
+            streams.append(legacy[at:at + size])
+        at += size
+    frames = [zstd_frame(s) for s in streams]
+    header = struct.pack("<IIIBBBBI12x", 0x5053474E, 4, n, degree, 12, 0, len(streams), 32)
+    toc = b"".join(struct.pack("<QQ", len(f), len(s)) for f, s in zip(frames, streams))
+    return header + toc + b"".join(frames)
+
+
 # The harness reads the first byte: even = the rest is the file, odd = the rest is the decompressed
-# stream (the harness gzips it).
+# stream of a v2/v3 file (the harness gzips it).
+write("spz", "v4_sh0.spz", b"\x00" + spz_v4(0, 3))
+write("spz", "v4_sh2.spz", b"\x00" + spz_v4(2, 2))
 write("spz", "v3_sh0.spz", b"\x00" + gzip.compress(spz(3, 0, 3), mtime=0))
 write("spz", "v3_sh1.spz", b"\x00" + gzip.compress(spz(3, 1, 2), mtime=0))
 write("spz", "v2_sh2.spz", b"\x00" + gzip.compress(spz(2, 2, 2), mtime=0))

@@ -11,7 +11,8 @@
 set -euo pipefail
 
 native=(cmake ninja-build g++ pkg-config libeigen3-dev libxsimd-dev libstb-dev doctest-dev libembree-dev libtbb-dev
-        libbenchmark-dev libcli11-dev nlohmann-json3-dev zlib1g-dev
+        libbenchmark-dev libcli11-dev nlohmann-json3-dev zlib1g-dev libzstd-dev  # .spz: gzip (v2, v3), ZSTD (v4)
+        libturbojpeg0-dev  # bench/bench_mjpeg only: hbgs's MJPEG decoding measured against libjpeg-turbo
         dpkg-dev file python3  # cpack -G DEB (dpkg-shlibdeps) and scripts/check-install.sh
         clang libclang-rt-14-dev  # libFuzzer and ThreadSanitizer builds (scripts/fuzz.sh, scripts/tsan.sh)
         chromium)  # headless, for the report page's test (tests/report: the viewer's screenshot vs hbgs's render)

@@ -15,11 +15,17 @@ namespace {
 struct ExportCli {
   gs::jobs::ExportRunOptions options;
   bool no_eval = false;
+  CLI::Option* spz_version = nullptr;
 };
 
 int run_export(ExportCli& cli) {
   gs::jobs::ExportRunOptions& a = cli.options;
   a.evaluate = !cli.no_eval;
+  if (cli.spz_version->count() > 0) {
+    gs::Expected<gs::io::SplatFormat> format = gs::io::splat_format_from_extension(a.out);
+    if (format.ok() && *format != gs::io::SplatFormat::kSpz)
+      return fail("export", "--spz-version applies to .spz output only (--out " + a.out + ")");
+  }
   gs::jobs::ExportRunSummary s;
   if (gs::Status st = gs::jobs::export_run(a, &s); !st.ok())
     return fail("export", st.code() == gs::StatusCode::kInvalidArgument ? st.message() : st.to_string());
@@ -50,6 +56,11 @@ Command add_export_command(CLI::App& parent) {
                   "Run folder (from hbgs train) or model file (.hbgs, .hbgc) to bake, or a splat file to convert")
       ->required();
   sub->add_option("--out", o->out, "File to write; its extension picks the format (.ply, .compressed.ply, .splat, .spz)")->required();
+  args->spz_version = sub->add_option("--spz-version", o->write.spz.version,
+                                      ".spz version: 4 (ZSTD, what current viewers and tools write) or 3 (gzip, for "
+                                      "readers older than version 4, e.g. splat-transform 2)")
+                          ->capture_default_str()
+                          ->check(CLI::IsMember({2, 3, 4}));
   sub->add_option("--sh-degree", o->sh_degree, "Degree of the SH colour (0-3; .splat keeps 0)")->capture_default_str()->check(CLI::Range(0, 3));
   sub->add_option("--distill", o->distill_iterations,
                   "Steps fitting the Gaussians to the model's renders of the training views (0: the least-squares fit only)")

@@ -12,6 +12,9 @@
 #include "common.h"
 #include "gs/io/image.h"
 #include "gs/jobs/run_folder.h"
+#ifndef HBGS_DEVICE
+#include "colmap_pose_init.h"
+#endif
 #include "gs/metrics/lpips.h"
 
 namespace hbgs::cli {
@@ -96,7 +99,12 @@ class ProgressPrinter {
 
 }  // namespace
 
-int run_train(const gs::jobs::TrainRunOptions& a, bool quiet, gs::jobs::TrainRunSummary* summary) {
+int run_train(const gs::jobs::TrainRunOptions& options, bool quiet, gs::jobs::TrainRunSummary* summary) {
+  gs::jobs::TrainRunOptions a = options;
+#ifndef HBGS_DEVICE
+  // --pose-init sfm: COLMAP through the capture library (hbgs-device has none: the job refuses it).
+  if (!a.sfm_pose_init) a.sfm_pose_init = &colmap_pose_initializer();
+#endif
   ProgressPrinter printer(quiet);
   gs::jobs::TrainRunSummary s;
   const gs::Status st = gs::jobs::train_run(a, [&](const gs::jobs::TrainEvent& e) { printer(e); }, &s);

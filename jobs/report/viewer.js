@@ -20,7 +20,7 @@
 //   - precision: blending runs in a float32 (or float16) colour buffer when the browser offers one
 //     (EXT_color_buffer_float, EXT_float_blend), and the result is rounded once to 8 bits, as hbgs
 //     rounds its float render (c * 255 + 0.5, truncated).
-// The .splat decoding matches hbgs's reader (core/io/splat/antimatter_splat.cpp): colour = byte /
+// The .splat decoding matches hbgs's reader (io/splat/antimatter_splat.cpp): colour = byte /
 // 255; opacity = clamp(byte, 0.5, 254.5) / 255; rotation (w, x, y, z) = (byte - 128) / 128
 // normalised (all zero: identity); scale linear.
 //

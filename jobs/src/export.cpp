@@ -77,7 +77,7 @@ Status convert(const ExportRunOptions& a, io::SplatFormat format, double t0, Exp
     if (!c.ok()) return c.status();
     loaded->cloud = std::make_unique<GaussianCloud>(std::move(c).value());
   }
-  GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *loaded->cloud));
+  GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *loaded->cloud, a.write));
   s.gaussians = loaded->cloud->size();
   s.bytes = file_size_or_zero(a.out);
   if (measure) {
@@ -100,6 +100,10 @@ Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
   if (!format.ok()) return Status(format.status().code(), "--out: " + format.status().message());
   if (a.sh_degree < 0 || a.sh_degree > 3) return invalid_argument("--sh-degree must be 0-3");
   if (a.distill_iterations < 0) return invalid_argument("--distill must be 0 or more");
+  if (*format == io::SplatFormat::kSpz) {  // the version and this build's codecs, before a long bake
+    Expected<std::vector<uint8_t>> empty = io::encode_spz(GaussianCloud{}, a.write.spz);
+    if (!empty.ok()) return Status(empty.status().code(), "--out " + a.out + ": " + empty.status().message());
+  }
   const double t0 = platform::now_seconds();
   if (platform::file_exists(a.input) && is_splat_file(a.input)) return convert(a, *format, t0, summary);
   GS_RETURN_IF_ERROR(check_bake_input(a.input));
@@ -119,7 +123,7 @@ Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
   bo.seed = a.seed;
   Expected<GaussianCloud> cloud = bake_over_training_views(*loaded, *background, bo, &pool, &s.bake);
   if (!cloud.ok()) return cloud.status();
-  GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *cloud));
+  GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *cloud, a.write));
   s.gaussians = cloud->size();
   s.bytes = file_size_or_zero(a.out);
   if (a.evaluate) GS_RETURN_IF_ERROR(measure_written(loaded->model, a.out, test_views(*loaded), *background, &pool, &s));

@@ -15,8 +15,12 @@
 namespace gs::jobs {
 
 // Merges the evaluation `r` as `method` into <dir>/results.json and per_view.json (other methods
-// already in them are kept; an unreadable file is replaced and *note says so). extra: members
-// added to results.json's method object.
+// already in them are kept; an unreadable file is replaced and *note says so), in the 3DGS schema:
+// results.json = {"<method>": {"SSIM": s, "PSNR": p, "LPIPS": l}} and per_view.json =
+// {"<method>": {"SSIM": {name: s}, "PSNR": {...}, "LPIPS": {...}}}; LPIPS is left out when it was
+// not computed; with masks, "PSNR_masked", "alpha_MAE" and "alpha_IoU" too. extra: members added
+// to results.json's method object (timings, model size, LPIPS backbone label). This is the one
+// writer of both files.
 Status write_eval_files(const std::string& dir, const std::string& method, const model::EvalResult& r,
                         const nlohmann::json& extra, std::string* note = nullptr);
 

@@ -19,6 +19,7 @@
 #include "gs/jobs/pose_truth.h"
 #include "gs/model/evaluate.h"
 #include "gs/model/hybrid_model.h"
+#include "gs/model/trainer.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
@@ -284,60 +285,14 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
   return Status::Ok();
 }
 
-Status register_views(const RegisterRunOptions& a, const std::function<void(const RegisteredView&, size_t, size_t)>& progress,
-                      RegisterViewsSummary* summary) {
-  Expected<pose::RegisterOptions> ro = register_options(a);
-  if (!ro.ok()) return ro.status();
-  if (a.views != "test" && a.views != "train" && a.views != "all")
-    return invalid_argument("--views: '" + a.views + "' is not one of test, train, all");
-  if (!platform::file_exists(a.input)) return invalid_argument(a.input + " not found");
-  if (!is_model_input(a.input))
-    return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs), a model file (.hbgs, .hbgc) nor "
-                            "a splat file (" + std::string(io::supported_splat_extensions()) + ")");
-  pose::PoseNoise noise;
-  if (Status st = pose::parse_pose_noise(a.init_noise, &noise); !st.ok())
-    return invalid_argument("--init-noise: " + st.message());
-  Expected<ModelViews> loaded = load_model_views(a.input, a.dataset, -1, a.views);
-  if (!loaded.ok()) return loaded.status();
-  const ModelSource* src = &loaded->source;
-  const model::HybridModel* model = &loaded->model;
-  const std::unique_ptr<LoadedDataset>* data = &loaded->data;
-  io::Dataset& ds = (*data)->dataset;
-  Expected<model::Background> background = model_background(*src, a.background);
-  if (!background.ok()) return background.status();
-  std::copy(background->rgb, background->rgb + 3, ro->background);
-  const float extent = loaded->scene_extent();  // before the noise moves the split's cameras
-  // True poses and the scene frame of the training cameras; the start poses are the perturbed ones.
-  PoseTruth truth;
-  if (Status st = apply_pose_noise(&ds, a.init_noise, a.views, &truth); !st.ok())
-    return invalid_argument("--init-noise: " + st.message());
-  const std::string out = a.out.empty() ? (fs::path(src->run_dir) / "register").string() : a.out;
-  if (platform::file_exists(out) && !platform::is_directory(out))
-    return invalid_argument("output " + out + " exists and is not a directory");
+namespace {
 
-  std::vector<size_t> index;  // dataset indices of the split, in name order (the dataset is sorted)
-  int max_w = 0, max_h = 0;
-  for (size_t i = 0; i < ds.views.size(); ++i) {
-    const io::DatasetView& v = ds.views[i];
-    if (!(a.views == "all" || (a.views == "test") == v.is_test)) continue;
-    index.push_back(i);
-    max_w = std::max(max_w, v.camera.intr.width);
-    max_h = std::max(max_h, v.camera.intr.height);
-  }
-
-  RegisterViewsSummary s;
-  // One registrar for every view: planned once, then allocation-free.
-  platform::ThreadPool pool(a.threads);
-  Expected<std::unique_ptr<pose::Registrar>> reg =
-      loaded->cloud ? pose::Registrar::create(*loaded->cloud, extent, max_w, max_h, *ro, &pool)
-                    : pose::Registrar::create(*model, max_w, max_h, *ro, &pool);
-  if (!reg.ok()) return reg.status();
-
-  const double t0 = platform::now_seconds();
+// Registers each view of the split (dataset indices `index`) from its start pose against its true
+// pose; rows[k] and estimated[k] belong to ds.views[index[k]].
+Status register_split(pose::Registrar& reg, const io::Dataset& ds, const std::vector<size_t>& index, const PoseTruth& truth,
+                      const float background[3], const std::function<void(const RegisteredView&, size_t, size_t)>& progress,
+                      std::vector<RegisteredView>* rows, std::vector<Pose>* estimated) {
   const double radius = truth.radius;
-  std::vector<RegisteredView>& rows = s.views;
-  std::vector<Pose> estimated;
-  std::vector<std::string> names;
   for (size_t k = 0; k < index.size(); ++k) {
     const io::DatasetView& v = ds.views[index[k]];
     const Pose& gt = truth.poses[index[k]];
@@ -345,49 +300,62 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
     row.name = v.name;
     row.initial_rotation_deg = pose::rotation_error_deg(v.camera.pose, gt);
     row.initial_translation = centre_distance(v.camera.pose, gt);
-    const io::Image8 photo = io::composite_rgb8(v.image, v.mask, background->rgb);  // a copy only when masked
-    if (Status st = (*reg)->register_view(photo.pixels.data(), v.camera.intr, v.camera.pose, &row.result); !st.ok())
+    const io::Image8 photo = io::composite_rgb8(v.image, v.mask, background);  // a copy only when masked
+    if (Status st = reg.register_view(photo.pixels.data(), v.camera.intr, v.camera.pose, &row.result); !st.ok())
       return Status(st.code(), "view " + v.name + ": " + st.message());
     row.rotation_deg = pose::rotation_error_deg(row.result.pose, gt);
     row.translation = centre_distance(row.result.pose, gt);
     row.success = row.rotation_deg < 1.0 && row.translation < 0.01 * radius;
     row.initial_translation_fraction = row.initial_translation / radius;
     row.translation_fraction = row.translation / radius;
-    estimated.push_back(row.result.pose);
-    names.push_back(v.name);
-    rows.push_back(std::move(row));
-    if (progress) progress(rows.back(), k + 1, index.size());
+    estimated->push_back(row.result.pose);
+    rows->push_back(std::move(row));
+    if (progress) progress(rows->back(), k + 1, index.size());
   }
+  return Status::Ok();
+}
 
-  reg->reset();  // its arena is not needed for the metrics below (peak memory: one renderer at a time)
-
-  // Image metrics of the split at the start poses and at the registered poses (the paper registers
-  // test views before measuring; both are reported, named as what they are).
-  // The split's views hold the start poses; they are measured, then given the registered poses in
-  // place and measured again (no copies of the images).
+// Image metrics of the split at the start poses and at the registered poses (the paper registers
+// test views before measuring; both are reported, named as what they are). The split's views hold
+// the start poses; they are measured, then given the registered poses in place and measured again
+// (no copies of the images).
+Status evaluate_split(const ModelViews& loaded, io::Dataset& ds, const std::vector<size_t>& index,
+                      const std::vector<Pose>& estimated, const model::EvalOptions& eo, platform::ThreadPool* pool,
+                      model::EvalResult* at_start, model::EvalResult* registered) {
   std::vector<const io::DatasetView*> split_views;
   for (size_t k = 0; k < index.size(); ++k) split_views.push_back(&ds.views[index[k]]);
-  model::EvalOptions eo;
-  std::copy(background->rgb, background->rgb + 3, eo.render.background);
-  eo.render.fixed_point_raster = a.fixed_point;
-  if (a.fixed_point) eo.render.int8_mlp = loaded->compact.get();  // int8 MLPs when the file is compact
-  Expected<model::EvalResult> m_start = evaluate_loaded(*loaded, split_views, eo, &pool);
+  Expected<model::EvalResult> m_start = evaluate_loaded(loaded, split_views, eo, pool);
   if (!m_start.ok()) return m_start.status();
   for (size_t k = 0; k < index.size(); ++k) ds.views[index[k]].camera.pose = estimated[k];
-  Expected<model::EvalResult> m_reg = evaluate_loaded(*loaded, split_views, eo, &pool);
+  Expected<model::EvalResult> m_reg = evaluate_loaded(loaded, split_views, eo, pool);
   if (!m_reg.ok()) return m_reg.status();
+  *at_start = std::move(m_start).value();
+  *registered = std::move(m_reg).value();
+  return Status::Ok();
+}
 
+// The split's figures over its rows.
+struct SplitFigures {
   std::vector<double> rot, trans, init_rot, init_trans, ms;
   size_t success = 0, converged = 0;
-  nlohmann::ordered_json jv = nlohmann::ordered_json::array();
+};
+SplitFigures split_figures(const std::vector<RegisteredView>& rows) {
+  SplitFigures f;
   for (const RegisteredView& row : rows) {
-    rot.push_back(row.rotation_deg);
-    trans.push_back(row.translation);
-    init_rot.push_back(row.initial_rotation_deg);
-    init_trans.push_back(row.initial_translation);
-    ms.push_back(row.result.milliseconds);
-    success += row.success;
-    converged += row.result.converged();
+    f.rot.push_back(row.rotation_deg);
+    f.trans.push_back(row.translation);
+    f.init_rot.push_back(row.initial_rotation_deg);
+    f.init_trans.push_back(row.initial_translation);
+    f.ms.push_back(row.result.milliseconds);
+    f.success += row.success;
+    f.converged += row.result.converged();
+  }
+  return f;
+}
+
+nlohmann::ordered_json registered_views_json(const std::vector<RegisteredView>& rows, double radius) {
+  nlohmann::ordered_json jv = nlohmann::ordered_json::array();
+  for (const RegisteredView& row : rows)
     jv.push_back({{"name", row.name},
                   {"initial_rotation_deg", row.initial_rotation_deg},
                   {"initial_translation", row.initial_translation},
@@ -405,41 +373,116 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
                   {"levels", row.result.levels},
                   {"ms", row.result.milliseconds},
                   {"pose", colmap_pose(row.result.pose)}});
-  }
+  return jv;
+}
+
+// register.json: the run's set-up, the summary and every view.
+nlohmann::ordered_json register_views_json(const RegisterRunOptions& a, const ModelViews& loaded, const std::string& noise,
+                                           int threads, double radius, const std::vector<RegisteredView>& rows,
+                                           const SplitFigures& f, const model::EvalResult& m_start,
+                                           const model::EvalResult& m_reg, double seconds) {
   const double n = double(rows.size());
   nlohmann::ordered_json jsum = {{"views", rows.size()},
-                            {"median_initial_rotation_deg", median(init_rot)},
-                            {"median_initial_translation", median(init_trans)},
-                            {"median_rotation_deg", median(rot)},
-                            {"mean_rotation_deg", mean(rot)},
-                            {"median_translation", median(trans)},
-                            {"median_translation_fraction", median(trans) / radius},
-                            {"success_rate", double(success) / n},
-                            {"converged_rate", double(converged) / n},
-                            {"psnr_at_start_poses", m_start->psnr},
-                            {"ssim_at_start_poses", m_start->ssim},
-                            {"psnr_registered", m_reg->psnr},
-                            {"ssim_registered", m_reg->ssim},
-                            {"median_ms", median(ms)},
-                            {"mean_ms", mean(ms)},
-                            {"total_seconds", platform::now_seconds() - t0}};
-  nlohmann::ordered_json j = {{"model", absolute_path(src->model_path)},
-                      {"dataset", absolute_path(src->dataset)},
-                      {"max_width", src->max_width},
-                      {"split", a.views},
-                      {"init_noise", pose::describe(noise)},
-                      {"solver", a.solver},
-                      {"downscale", a.downscale},
-                      {"time_budget_ms", a.time_budget_ms},
-                      {"threads", pool.num_threads()},
-                      {"anchors", model->anchor_count},
-                      {"scene_radius", radius},
-                      {"scene_radius_definition", "largest distance of a training camera centre from their mean"},
-                      {"translation_definition", "camera-centre distance to the dataset pose, scene units (no alignment)"},
-                      {"success_definition", "rotation error < 1 deg and translation error < 0.01 scene radius"},
-                      {"pose_order", "qw qx qy qz tx ty tz (world-to-camera, COLMAP)"},
-                      {"summary", jsum},
-                      {"views", std::move(jv)}};
+                                 {"median_initial_rotation_deg", median(f.init_rot)},
+                                 {"median_initial_translation", median(f.init_trans)},
+                                 {"median_rotation_deg", median(f.rot)},
+                                 {"mean_rotation_deg", mean(f.rot)},
+                                 {"median_translation", median(f.trans)},
+                                 {"median_translation_fraction", median(f.trans) / radius},
+                                 {"success_rate", double(f.success) / n},
+                                 {"converged_rate", double(f.converged) / n},
+                                 {"psnr_at_start_poses", m_start.psnr},
+                                 {"ssim_at_start_poses", m_start.ssim},
+                                 {"psnr_registered", m_reg.psnr},
+                                 {"ssim_registered", m_reg.ssim},
+                                 {"median_ms", median(f.ms)},
+                                 {"mean_ms", mean(f.ms)},
+                                 {"total_seconds", seconds}};
+  return {{"model", absolute_path(loaded.source.model_path)},
+          {"dataset", absolute_path(loaded.source.dataset)},
+          {"max_width", loaded.source.max_width},
+          {"split", a.views},
+          {"init_noise", noise},
+          {"solver", a.solver},
+          {"downscale", a.downscale},
+          {"time_budget_ms", a.time_budget_ms},
+          {"threads", threads},
+          {"anchors", loaded.model.anchor_count},
+          {"scene_radius", radius},
+          {"scene_radius_definition", "largest distance of a training camera centre from their mean"},
+          {"translation_definition", "camera-centre distance to the dataset pose, scene units (no alignment)"},
+          {"success_definition", "rotation error < 1 deg and translation error < 0.01 scene radius"},
+          {"pose_order", "qw qx qy qz tx ty tz (world-to-camera, COLMAP)"},
+          {"summary", jsum},
+          {"views", registered_views_json(rows, radius)}};
+}
+
+}  // namespace
+
+Status register_views(const RegisterRunOptions& a, const std::function<void(const RegisteredView&, size_t, size_t)>& progress,
+                      RegisterViewsSummary* summary) {
+  Expected<pose::RegisterOptions> ro = register_options(a);
+  if (!ro.ok()) return ro.status();
+  if (a.views != "test" && a.views != "train" && a.views != "all")
+    return invalid_argument("--views: '" + a.views + "' is not one of test, train, all");
+  if (!platform::file_exists(a.input)) return invalid_argument(a.input + " not found");
+  if (!is_model_input(a.input))
+    return invalid_argument(a.input + " is neither a run folder (with run.json or model.hbgs), a model file (.hbgs, .hbgc) nor "
+                            "a splat file (" + std::string(io::supported_splat_extensions()) + ")");
+  pose::PoseNoise noise;
+  if (Status st = pose::parse_pose_noise(a.init_noise, &noise); !st.ok())
+    return invalid_argument("--init-noise: " + st.message());
+  Expected<ModelViews> loaded = load_model_views(a.input, a.dataset, -1, a.views);
+  if (!loaded.ok()) return loaded.status();
+  const ModelSource* src = &loaded->source;
+  io::Dataset& ds = loaded->data->dataset;
+  Expected<model::Background> background = model_background(*src, a.background);
+  if (!background.ok()) return background.status();
+  std::copy(background->rgb, background->rgb + 3, ro->background);
+  const float extent = loaded->scene_extent();  // before the noise moves the split's cameras
+  // True poses and the scene frame of the training cameras; the start poses are the perturbed ones.
+  PoseTruth truth;
+  if (Status st = apply_pose_noise(&ds, a.init_noise, a.views, &truth); !st.ok())
+    return invalid_argument("--init-noise: " + st.message());
+  const std::string out = a.out.empty() ? (fs::path(src->run_dir) / "register").string() : a.out;
+  if (platform::file_exists(out) && !platform::is_directory(out))
+    return invalid_argument("output " + out + " exists and is not a directory");
+
+  std::vector<size_t> index;  // dataset indices of the split, in name order (the dataset is sorted)
+  std::vector<std::string> names;
+  int max_w = 0, max_h = 0;
+  for (size_t i = 0; i < ds.views.size(); ++i) {
+    const io::DatasetView& v = ds.views[i];
+    if (!(a.views == "all" || (a.views == "test") == v.is_test)) continue;
+    index.push_back(i);
+    names.push_back(v.name);
+    max_w = std::max(max_w, v.camera.intr.width);
+    max_h = std::max(max_h, v.camera.intr.height);
+  }
+
+  RegisterViewsSummary s;
+  // One registrar for every view: planned once, then allocation-free.
+  platform::ThreadPool pool(a.threads);
+  Expected<std::unique_ptr<pose::Registrar>> reg =
+      loaded->cloud ? pose::Registrar::create(*loaded->cloud, extent, max_w, max_h, *ro, &pool)
+                    : pose::Registrar::create(loaded->model, max_w, max_h, *ro, &pool);
+  if (!reg.ok()) return reg.status();
+  const double t0 = platform::now_seconds();
+  const double radius = truth.radius;
+  std::vector<Pose> estimated;
+  GS_RETURN_IF_ERROR(register_split(**reg, ds, index, truth, background->rgb, progress, &s.views, &estimated));
+  reg->reset();  // its arena is not needed for the metrics below (peak memory: one renderer at a time)
+
+  model::EvalOptions eo;
+  std::copy(background->rgb, background->rgb + 3, eo.render.background);
+  eo.render.fixed_point_raster = a.fixed_point;
+  if (a.fixed_point) eo.render.int8_mlp = loaded->compact.get();  // int8 MLPs when the file is compact
+  model::EvalResult m_start, m_reg;
+  GS_RETURN_IF_ERROR(evaluate_split(*loaded, ds, index, estimated, eo, &pool, &m_start, &m_reg));
+
+  const SplitFigures f = split_figures(s.views);
+  const nlohmann::ordered_json j = register_views_json(a, *loaded, pose::describe(noise), pool.num_threads(), radius, s.views, f,
+                                                       m_start, m_reg, platform::now_seconds() - t0);
   GS_RETURN_IF_ERROR(platform::make_dirs(out));
   const std::string json_path = (fs::path(out) / kRegisterJson).string();
   const std::string text = j.dump(2) + "\n";
@@ -453,19 +496,19 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   s.json_path = json_path;
   s.posed_dir = posed;
   s.scene_radius = radius;
-  s.median_initial_rotation_deg = median(init_rot);
-  s.median_initial_translation = median(init_trans);
-  s.median_rotation_deg = median(rot);
-  s.median_translation = median(trans);
-  s.success = success;
-  s.converged = converged;
-  s.median_ms = median(ms);
-  s.mean_ms = mean(ms);
+  s.median_initial_rotation_deg = median(f.init_rot);
+  s.median_initial_translation = median(f.init_trans);
+  s.median_rotation_deg = median(f.rot);
+  s.median_translation = median(f.trans);
+  s.success = f.success;
+  s.converged = f.converged;
+  s.median_ms = median(f.ms);
+  s.mean_ms = mean(f.ms);
   s.total_seconds = platform::now_seconds() - t0;
-  s.psnr_at_start = m_start->psnr;
-  s.ssim_at_start = m_start->ssim;
-  s.psnr_registered = m_reg->psnr;
-  s.ssim_registered = m_reg->ssim;
+  s.psnr_at_start = m_start.psnr;
+  s.ssim_at_start = m_start.ssim;
+  s.psnr_registered = m_reg.psnr;
+  s.ssim_registered = m_reg.ssim;
   s.threads = pool.num_threads();
   if (summary) *summary = std::move(s);
   return Status::Ok();

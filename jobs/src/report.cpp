@@ -23,11 +23,12 @@
 #include "gs/io/splat_formats.h"
 #include "gs/jobs/export.h"
 #include "gs/jobs/run_folder.h"
-#include "gs/model/trainer.h"
+#include "gs/model/model_renderer.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
 #include "report_assets.h"
+#include "text_util.h"
 
 namespace gs::jobs {
 namespace {
@@ -72,12 +73,6 @@ std::string base64(const uint8_t* data, size_t size) {
 
 std::string data_uri(const char* mime, const std::vector<uint8_t>& bytes) {
   return std::string("data:") + mime + ";base64," + base64(bytes.data(), bytes.size());
-}
-
-std::string fixed(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
-  return buf;
 }
 
 // JSON for a <script> element: "</" is written "<\/" so no text can close the element early, and
@@ -245,6 +240,194 @@ std::string run_facts(const ModelSource& source, const Json& run, const Json& la
   return h + "</dl>\n";
 }
 
+// The run folder's files the page reads (run.json, results.json, per_view.json) and the last
+// evaluated iteration.
+struct RunFiles {
+  Json run, results, per_view;
+  std::vector<std::pair<int, std::string>> iterations;  // evaluated_iterations(results)
+  std::string method;                                   // the last one's key ("" : none)
+};
+Status read_run_files(const std::string& run_dir, RunFiles* f) {
+  Expected<Json> run = read_json_object((fs::path(run_dir) / kRunJson).string());
+  if (!run.ok()) return run.status();
+  Expected<Json> results = read_json_object((fs::path(run_dir) / kResultsJson).string());
+  if (!results.ok()) return results.status();
+  Expected<Json> per_view = read_json_object((fs::path(run_dir) / kPerViewJson).string());
+  if (!per_view.ok()) return per_view.status();
+  f->run = std::move(run).value();
+  f->results = std::move(results).value();
+  f->per_view = std::move(per_view).value();
+  f->iterations = evaluated_iterations(f->results);
+  f->method = f->iterations.empty() ? std::string() : f->iterations.back().second;
+  return Status::Ok();
+}
+
+// 1. The viewer's splats: the bake of hbgs export (SH degree 0: the .splat layout keeps colour
+// only), capped, encoded; then measured as hbgs renders them after reading them back. Fills the
+// splat figures of *s and splats_psnr_of (view name -> dB).
+Status bake_viewer_splats(const ReportRunOptions& a, const ModelViews& loaded, const model::Background& background,
+                          platform::ThreadPool* pool, std::vector<uint8_t>* splat_bytes, std::map<std::string, double>* splats_psnr_of,
+                          ReportRunSummary* s) {
+  model::BakeOptions bo;
+  bo.sh_degree = 0;
+  bo.distill_iterations = a.distill_iterations;
+  bo.seed = a.seed;
+  Expected<GaussianCloud> baked = bake_over_training_views(loaded, background, bo, pool, &s->bake);
+  if (!baked.ok()) return baked.status();
+  s->baked = baked->size();
+  const GaussianCloud capped = cap_splats(*baked, size_t(a.max_splats));
+  s->splats = capped.size();
+  Expected<std::vector<uint8_t>> bytes = io::encode_gaussians(capped, io::SplatFormat::kAntimatterSplat);
+  if (!bytes.ok()) return bytes.status();
+  s->splat_bytes = bytes->size();
+  Expected<GaussianCloud> embedded = io::parse_antimatter_splat(bytes->data(), bytes->size(), "the report's splats");
+  if (!embedded.ok()) return embedded.status();
+  model::EvalOptions quick;
+  quick.psnr_only = true;
+  std::copy(background.rgb, background.rgb + 3, quick.render.background);
+  Expected<model::EvalResult> splats_eval = model::evaluate_views(*embedded, loaded.data->views, quick, pool);
+  if (!splats_eval.ok()) return splats_eval.status();
+  s->splats_psnr = splats_eval->psnr;
+  for (const model::ViewMetrics& v : splats_eval->views) (*splats_psnr_of)[v.name] = v.psnr;
+  *splat_bytes = std::move(bytes).value();
+  return Status::Ok();
+}
+
+// The render PNG of a shown view: the run's own (test/<method>/renders/), else rendered now with
+// renderer (planned on first use for the largest shown view).
+Status view_render_png(const ModelViews& loaded, const model::Background& background, const std::vector<const io::DatasetView*>& shown,
+                       const io::DatasetView& v, const std::string& path, platform::ThreadPool* pool,
+                       model::ModelRenderer* renderer, bool* renderer_ready, size_t* rendered_now, std::vector<uint8_t>* png) {
+  if (platform::file_exists(path)) {
+    Expected<std::vector<uint8_t>> bytes = platform::read_file(path);
+    if (!bytes.ok()) return bytes.status();
+    *png = std::move(bytes).value();
+    return Status::Ok();
+  }
+  const int w = v.camera.intr.width, h = v.camera.intr.height;
+  if (!*renderer_ready) {
+    int max_w = 0, max_h = 0;
+    for (const io::DatasetView* u : shown) {
+      max_w = std::max(max_w, u->camera.intr.width);
+      max_h = std::max(max_h, u->camera.intr.height);
+    }
+    GS_RETURN_IF_ERROR(renderer->init(loaded.model, max_w, max_h, pool));
+    model::ModelRenderOptions ro;
+    std::copy(background.rgb, background.rgb + 3, ro.background);
+    GS_RETURN_IF_ERROR(renderer->set_options(ro));
+    *renderer_ready = true;
+  }
+  std::vector<float> rgb(size_t(w) * size_t(h) * 3);
+  GS_RETURN_IF_ERROR(renderer->render(loaded.model, v.camera, rgb.data()));
+  Expected<std::vector<uint8_t>> bytes = io::encode_png(io::image_from_float_rgb(rgb.data(), w, h));
+  if (!bytes.ok()) return bytes.status();
+  *png = std::move(bytes).value();
+  ++*rendered_now;
+  return Status::Ok();
+}
+
+// One shown view: render and ground truth side by side with its figures.
+std::string pair_html(const io::DatasetView& v, const std::vector<uint8_t>& render_png, const std::vector<uint8_t>& truth_png,
+                      const RunFiles& f, const std::map<std::string, double>& splats_psnr_of) {
+  std::string figures;
+  auto metric = [&](const char* key, const char* label, int digits, const char* unit) {
+    if (f.method.empty() || !f.per_view.contains(f.method) || !f.per_view[f.method].contains(key)) return;
+    const Json& m = f.per_view[f.method][key];
+    if (m.is_object() && m.contains(v.name) && m[v.name].is_number())
+      figures += std::string(label) + " " + fixed(m[v.name].get<double>(), digits) + unit + "<br>";
+  };
+  metric("PSNR", "PSNR", 2, " dB");
+  metric("SSIM", "SSIM", 4, "");
+  metric("LPIPS", "LPIPS", 4, "");
+  metric("PSNR_masked", "PSNR masked", 2, " dB");
+  if (splats_psnr_of.count(v.name)) figures += "viewer splats (hbgs render) " + fixed(splats_psnr_of.at(v.name), 2) + " dB<br>";
+  // Small images are shown enlarged by a whole factor (pixelated: every pixel stays visible).
+  const int zoom = std::max(1, 320 / std::max(1, v.camera.intr.width));
+  const std::string size = "width=\"" + std::to_string(zoom * v.camera.intr.width) + "\" height=\"" +
+                           std::to_string(zoom * v.camera.intr.height) + "\"";
+  return "<div class=\"pair\"><figure><img alt=\"render of " + html_escape(v.name) + "\" " + size + " src=\"" +
+         data_uri("image/png", render_png) + "\"><figcaption>render</figcaption></figure><figure><img alt=\"ground truth " +
+         html_escape(v.name) + "\" " + size + " src=\"" + data_uri("image/png", truth_png) +
+         "\"><figcaption>ground truth" + (v.mask.empty() ? "" : " (masked, on the run's background)") +
+         "</figcaption></figure><div class=\"figures\"><strong>" + html_escape(v.name) + "</strong><br>" + figures +
+         "</div></div>\n";
+}
+
+// 2. Test renders beside ground truth for the shown views; *rendered_now: how many the run held no PNG of.
+Status render_pairs(const ReportRunOptions& a, const ModelViews& loaded, const model::Background& background, const RunFiles& f,
+                    const std::vector<const io::DatasetView*>& shown, const std::map<std::string, double>& splats_psnr_of,
+                    platform::ThreadPool* pool, std::string* pairs, size_t* rendered_now, ReportRunSummary* s) {
+  const std::string renders_dir = (fs::path(a.run) / "test" / (f.method.empty() ? "none" : f.method) / "renders").string();
+  Expected<std::vector<std::string>> render_paths = model::render_png_paths(renders_dir, shown);
+  if (!render_paths.ok()) return render_paths.status();
+  model::ModelRenderer renderer;  // for views whose PNG the run does not hold
+  bool renderer_ready = false;
+  for (size_t k = 0; k < shown.size(); ++k) {
+    const io::DatasetView& v = *shown[k];
+    std::vector<uint8_t> render_png;
+    GS_RETURN_IF_ERROR(view_render_png(loaded, background, shown, v, (*render_paths)[k], pool, &renderer, &renderer_ready,
+                                       rendered_now, &render_png));
+    Expected<std::vector<uint8_t>> truth_png = io::encode_png(io::composite_rgb8(v.image, v.mask, background.rgb));
+    if (!truth_png.ok()) return truth_png.status();
+    s->shown_views.push_back(v.name);
+    *pairs += pair_html(v, render_png, *truth_png, f, splats_psnr_of);
+  }
+  return Status::Ok();
+}
+
+// The page's viewer section (the script fills it).
+std::string viewer_section(const ReportRunOptions& a, const ReportRunSummary& s) {
+  std::string h = "<section id=\"viewer\"><h2>Viewer</h2>\n<p class=\"note\">The model baked into " + std::to_string(s.splats) +
+                  " plain Gaussians (colour without view dependence), as <code>hbgs export</code> does";
+  h += a.distill_iterations > 0 ? " with " + std::to_string(a.distill_iterations) + " distillation steps" : std::string(" (fit only)");
+  if (s.splats < s.baked)
+    h += "; capped at " + std::to_string(s.splats) + " of the " + std::to_string(s.baked) +
+         " baked (<code>--max-splats</code>; the largest contributions, opacity times area, kept)";
+  h += ". Rendered by hbgs on the test views they score " + fixed(s.splats_psnr, 2) + " dB";
+  if (s.model_psnr >= 0) h += " (the model: " + fixed(s.model_psnr, 2) + " dB)";
+  h += ". Drag to orbit, wheel to zoom, right-drag or shift-drag to pan; <code>#view=NAME</code> in the address opens a "
+       "dataset camera at its exact size.</p>\n<div id=\"viewer-box\"><div id=\"viewer-controls\"><label>camera "
+       "<select id=\"hbgs-view-select\"></select></label><button id=\"hbgs-view-reset\" type=\"button\">reset</button></div>\n"
+       "<canvas id=\"hbgs-canvas\" width=\"1\" height=\"1\"></canvas>\n<div id=\"hbgs-viewer-status\">"
+       "The viewer needs JavaScript and WebGL 2.</div></div></section>\n";
+  return h;
+}
+
+// The page's section of test renders and ground truth.
+std::string renders_section(const std::vector<const io::DatasetView*>& shown, size_t test_views, size_t rendered_now,
+                            const std::string& method, int iteration, const std::string& pairs) {
+  std::string h = "<section id=\"renders\"><h2>Test renders and ground truth</h2>\n<p class=\"note\">";
+  if (shown.empty()) {
+    h += "No test views shown (<code>--views 0</code>, or the dataset has none).";
+  } else {
+    h += std::to_string(shown.size()) + " of the " + std::to_string(test_views) + " test views, spread over the split: ";
+    for (size_t k = 0; k < shown.size(); ++k) h += (k ? ", " : "") + html_escape(shown[k]->name);
+    h += ". Renders: " + (rendered_now == shown.size() ? std::string("the model rendered by hbgs report (the run holds no render PNGs)")
+                          : "<code>" + html_escape("test/" + method + "/renders/") + "</code> of the run" +
+                                (rendered_now ? " (" + std::to_string(rendered_now) + " rendered now)" : std::string()));
+    h += "; metrics of iteration " + (method.empty() ? std::string("-") : std::to_string(iteration)) + ".";
+  }
+  h += "</p>\n<div class=\"pairs\">\n" + pairs + "</div></section>\n";
+  return h;
+}
+
+// The viewer's data: background, splat facts, the dataset's cameras and the one to open at.
+Json viewer_data(const ModelViews& loaded, const model::Background& background, const std::vector<const io::DatasetView*>& shown,
+                 const ReportRunSummary& s) {
+  Json data;
+  data["background"] = {background.rgb[0], background.rgb[1], background.rgb[2]};
+  data["splats"] = {{"count", s.splats}, {"baked", s.baked}, {"format", "antimatter15 .splat, 32 bytes a splat"}};
+  Json cameras = Json::array();
+  int initial_view = -1;
+  for (const io::DatasetView& v : loaded.data->dataset.views) {
+    if (initial_view < 0 && ((!shown.empty() && &v == shown.front()) || (shown.empty() && v.is_test))) initial_view = int(cameras.size());
+    cameras.push_back(camera_json(v));
+  }
+  data["cameras"] = std::move(cameras);
+  data["initial_view"] = std::max(initial_view, 0);
+  return data;
+}
+
 }  // namespace
 
 Status report_run(const ReportRunOptions& a, ReportRunSummary* summary) {
@@ -260,121 +443,32 @@ Status report_run(const ReportRunOptions& a, ReportRunSummary* summary) {
   // The model with its dataset's cameras and the test views' images.
   Expected<ModelViews> loaded = load_model_views(a.run, a.dataset, -1, "test");
   if (!loaded.ok()) return loaded.status();
-  const ModelSource& source = loaded->source;
-  Expected<model::Background> background = model_background(source, "");
+  Expected<model::Background> background = model_background(loaded->source, "");
   if (!background.ok()) return background.status();
-  Expected<Json> run = read_json_object((fs::path(a.run) / kRunJson).string());
-  if (!run.ok()) return run.status();
-  Expected<Json> results = read_json_object((fs::path(a.run) / kResultsJson).string());
-  if (!results.ok()) return results.status();
-  Expected<Json> per_view = read_json_object((fs::path(a.run) / kPerViewJson).string());
-  if (!per_view.ok()) return per_view.status();
-  const std::vector<std::pair<int, std::string>> iterations = evaluated_iterations(*results);
+  RunFiles f;
+  GS_RETURN_IF_ERROR(read_run_files(a.run, &f));
 
   ReportRunSummary s;
   s.path = out;
   const std::vector<const io::DatasetView*>& test = loaded->data->views;
   s.test_views = test.size();
   s.cameras = loaded->data->dataset.views.size();
-
-  // 1. The viewer's splats: the bake of hbgs export (SH degree 0: the .splat layout keeps colour
-  // only), capped, encoded; then measured as hbgs renders them after reading them back.
   platform::ThreadPool pool(a.threads);
-  model::BakeOptions bo;
-  bo.sh_degree = 0;
-  bo.distill_iterations = a.distill_iterations;
-  bo.seed = a.seed;
-  Expected<GaussianCloud> baked = bake_over_training_views(*loaded, *background, bo, &pool, &s.bake);
-  if (!baked.ok()) return baked.status();
-  s.baked = baked->size();
-  const GaussianCloud capped = cap_splats(*baked, size_t(a.max_splats));
-  s.splats = capped.size();
-  Expected<std::vector<uint8_t>> splat_bytes = io::encode_gaussians(capped, io::SplatFormat::kAntimatterSplat);
-  if (!splat_bytes.ok()) return splat_bytes.status();
-  s.splat_bytes = splat_bytes->size();
-  Expected<GaussianCloud> embedded = io::parse_antimatter_splat(splat_bytes->data(), splat_bytes->size(), "the report's splats");
-  if (!embedded.ok()) return embedded.status();
-  model::EvalOptions quick;
-  quick.psnr_only = true;
-  std::copy(background->rgb, background->rgb + 3, quick.render.background);
-  Expected<model::EvalResult> splats_eval = model::evaluate_views(*embedded, test, quick, &pool);
-  if (!splats_eval.ok()) return splats_eval.status();
-  s.splats_psnr = splats_eval->psnr;
+  std::vector<uint8_t> splat_bytes;
   std::map<std::string, double> splats_psnr_of;
-  for (const model::ViewMetrics& v : splats_eval->views) splats_psnr_of[v.name] = v.psnr;
+  GS_RETURN_IF_ERROR(bake_viewer_splats(a, *loaded, *background, &pool, &splat_bytes, &splats_psnr_of, &s));
 
-  // 2. Test renders beside ground truth, for views spread over the test split.
-  const std::string method = iterations.empty() ? std::string() : iterations.back().second;
-  s.iteration = iterations.empty() ? -1 : iterations.back().first;
-  if (!method.empty() && (*results)[method].contains("PSNR") && (*results)[method]["PSNR"].is_number())
-    s.model_psnr = (*results)[method]["PSNR"].get<double>();
+  s.iteration = f.iterations.empty() ? -1 : f.iterations.back().first;
+  if (!f.method.empty() && f.results[f.method].contains("PSNR") && f.results[f.method]["PSNR"].is_number())
+    s.model_psnr = f.results[f.method]["PSNR"].get<double>();
   std::vector<const io::DatasetView*> shown;
   for (size_t i : spread(test.size(), size_t(a.views))) shown.push_back(test[i]);
-  const std::string renders_dir = (fs::path(a.run) / "test" / (method.empty() ? "none" : method) / "renders").string();
-  Expected<std::vector<std::string>> render_paths = model::render_png_paths(renders_dir, shown);
-  if (!render_paths.ok()) return render_paths.status();
-  model::ModelRenderer renderer;  // for views whose PNG the run does not hold
-  bool renderer_ready = false;
-  size_t rendered_now = 0;
   std::string pairs;
-  for (size_t k = 0; k < shown.size(); ++k) {
-    const io::DatasetView& v = *shown[k];
-    std::vector<uint8_t> render_png;
-    if (platform::file_exists((*render_paths)[k])) {
-      Expected<std::vector<uint8_t>> bytes = platform::read_file((*render_paths)[k]);
-      if (!bytes.ok()) return bytes.status();
-      render_png = std::move(bytes).value();
-    } else {
-      const int w = v.camera.intr.width, h = v.camera.intr.height;
-      if (!renderer_ready) {
-        int max_w = 0, max_h = 0;
-        for (const io::DatasetView* u : shown) {
-          max_w = std::max(max_w, u->camera.intr.width);
-          max_h = std::max(max_h, u->camera.intr.height);
-        }
-        GS_RETURN_IF_ERROR(renderer.init(loaded->model, max_w, max_h, &pool));
-        model::ModelRenderOptions ro;
-        std::copy(background->rgb, background->rgb + 3, ro.background);
-        GS_RETURN_IF_ERROR(renderer.set_options(ro));
-        renderer_ready = true;
-      }
-      std::vector<float> rgb(size_t(w) * size_t(h) * 3);
-      GS_RETURN_IF_ERROR(renderer.render(loaded->model, v.camera, rgb.data()));
-      Expected<std::vector<uint8_t>> bytes = io::encode_png(io::image_from_float_rgb(rgb.data(), w, h));
-      if (!bytes.ok()) return bytes.status();
-      render_png = std::move(bytes).value();
-      ++rendered_now;
-    }
-    Expected<std::vector<uint8_t>> truth_png = io::encode_png(io::composite_rgb8(v.image, v.mask, background->rgb));
-    if (!truth_png.ok()) return truth_png.status();
-    s.shown_views.push_back(v.name);
-
-    std::string figures;
-    auto metric = [&](const char* key, const char* label, int digits, const char* unit) {
-      if (method.empty() || !per_view->contains(method) || !(*per_view)[method].contains(key)) return;
-      const Json& m = (*per_view)[method][key];
-      if (m.is_object() && m.contains(v.name) && m[v.name].is_number())
-        figures += std::string(label) + " " + fixed(m[v.name].get<double>(), digits) + unit + "<br>";
-    };
-    metric("PSNR", "PSNR", 2, " dB");
-    metric("SSIM", "SSIM", 4, "");
-    metric("LPIPS", "LPIPS", 4, "");
-    metric("PSNR_masked", "PSNR masked", 2, " dB");
-    if (splats_psnr_of.count(v.name)) figures += "viewer splats (hbgs render) " + fixed(splats_psnr_of[v.name], 2) + " dB<br>";
-    // Small images are shown enlarged by a whole factor (pixelated: every pixel stays visible).
-    const int zoom = std::max(1, 320 / std::max(1, v.camera.intr.width));
-    const std::string size = "width=\"" + std::to_string(zoom * v.camera.intr.width) + "\" height=\"" +
-                             std::to_string(zoom * v.camera.intr.height) + "\"";
-    pairs += "<div class=\"pair\"><figure><img alt=\"render of " + html_escape(v.name) + "\" " + size + " src=\"" +
-             data_uri("image/png", render_png) + "\"><figcaption>render</figcaption></figure><figure><img alt=\"ground truth " +
-             html_escape(v.name) + "\" " + size + " src=\"" + data_uri("image/png", *truth_png) +
-             "\"><figcaption>ground truth" + (v.mask.empty() ? "" : " (masked, on the run's background)") +
-             "</figcaption></figure><div class=\"figures\"><strong>" + html_escape(v.name) + "</strong><br>" + figures +
-             "</div></div>\n";
-  }
+  size_t rendered_now = 0;
+  GS_RETURN_IF_ERROR(render_pairs(a, *loaded, *background, f, shown, splats_psnr_of, &pool, &pairs, &rendered_now, &s));
 
   // 3. The page.
-  const Json last = method.empty() ? Json() : (*results)[method];
+  const Json last = f.method.empty() ? Json() : f.results[f.method];
   std::string h;
   h.reserve(size_t(double(s.splat_bytes) * 1.34) + (1u << 20));
   h += "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
@@ -382,9 +476,8 @@ Status report_run(const ReportRunOptions& a, ReportRunSummary* summary) {
        "<title>hbgs report: " + html_escape(fs::path(absolute_path(a.run)).filename().string()) + "</title>\n<style>\n";
   h += report_assets::kReportCss;
   h += "</style></head>\n<body>\n<h1>hbgs training report</h1>\n";
-  h += run_facts(source, *run, last, s.cameras - s.test_views, s.test_views);
-  h += metrics_section(*results, iterations);
-
+  h += run_facts(loaded->source, f.run, last, s.cameras - s.test_views, s.test_views);
+  h += metrics_section(f.results, f.iterations);
   h += "<section id=\"plot\"><h2>Test PSNR against training time</h2>\n";
   const std::string svg_path = (fs::path(a.run) / kPsnrSvg).string();
   if (platform::file_exists(svg_path)) {
@@ -396,47 +489,10 @@ Status report_run(const ReportRunOptions& a, ReportRunSummary* summary) {
     h += "<p class=\"note\">The run has no " + std::string(kPsnrSvg) + " (trained with --eval-every 0, or without test views).</p>\n";
   }
   h += "</section>\n";
-
-  h += "<section id=\"viewer\"><h2>Viewer</h2>\n<p class=\"note\">The model baked into " + std::to_string(s.splats) +
-       " plain Gaussians (colour without view dependence), as <code>hbgs export</code> does";
-  h += a.distill_iterations > 0 ? " with " + std::to_string(a.distill_iterations) + " distillation steps" : std::string(" (fit only)");
-  if (s.splats < s.baked)
-    h += "; capped at " + std::to_string(s.splats) + " of the " + std::to_string(s.baked) +
-         " baked (<code>--max-splats</code>; the largest contributions, opacity times area, kept)";
-  h += ". Rendered by hbgs on the test views they score " + fixed(s.splats_psnr, 2) + " dB";
-  if (s.model_psnr >= 0) h += " (the model: " + fixed(s.model_psnr, 2) + " dB)";
-  h += ". Drag to orbit, wheel to zoom, right-drag or shift-drag to pan; <code>#view=NAME</code> in the address opens a "
-       "dataset camera at its exact size.</p>\n<div id=\"viewer-box\"><div id=\"viewer-controls\"><label>camera "
-       "<select id=\"hbgs-view-select\"></select></label><button id=\"hbgs-view-reset\" type=\"button\">reset</button></div>\n"
-       "<canvas id=\"hbgs-canvas\" width=\"1\" height=\"1\"></canvas>\n<div id=\"hbgs-viewer-status\">"
-       "The viewer needs JavaScript and WebGL 2.</div></div></section>\n";
-
-  h += "<section id=\"renders\"><h2>Test renders and ground truth</h2>\n<p class=\"note\">";
-  if (shown.empty()) {
-    h += "No test views shown (<code>--views 0</code>, or the dataset has none).";
-  } else {
-    h += std::to_string(shown.size()) + " of the " + std::to_string(test.size()) + " test views, spread over the split: ";
-    for (size_t k = 0; k < shown.size(); ++k) h += (k ? ", " : "") + html_escape(shown[k]->name);
-    h += ". Renders: " + (rendered_now == shown.size() ? std::string("the model rendered by hbgs report (the run holds no render PNGs)")
-                          : "<code>" + html_escape("test/" + method + "/renders/") + "</code> of the run" +
-                                (rendered_now ? " (" + std::to_string(rendered_now) + " rendered now)" : std::string()));
-    h += "; metrics of iteration " + (method.empty() ? std::string("-") : std::to_string(s.iteration)) + ".";
-  }
-  h += "</p>\n<div class=\"pairs\">\n" + pairs + "</div></section>\n";
-
-  Json data;
-  data["background"] = {background->rgb[0], background->rgb[1], background->rgb[2]};
-  data["splats"] = {{"count", s.splats}, {"baked", s.baked}, {"format", "antimatter15 .splat, 32 bytes a splat"}};
-  Json cameras = Json::array();
-  int initial_view = -1;
-  for (const io::DatasetView& v : loaded->data->dataset.views) {
-    if (initial_view < 0 && ((!shown.empty() && &v == shown.front()) || (shown.empty() && v.is_test))) initial_view = int(cameras.size());
-    cameras.push_back(camera_json(v));
-  }
-  data["cameras"] = std::move(cameras);
-  data["initial_view"] = std::max(initial_view, 0);
-  h += "<script type=\"application/json\" id=\"hbgs-data\">" + script_json(data) + "</script>\n";
-  h += "<script type=\"application/octet-stream\" id=\"hbgs-splats\">" + base64(splat_bytes->data(), splat_bytes->size()) +
+  h += viewer_section(a, s);
+  h += renders_section(shown, test.size(), rendered_now, f.method, s.iteration, pairs);
+  h += "<script type=\"application/json\" id=\"hbgs-data\">" + script_json(viewer_data(*loaded, *background, shown, s)) + "</script>\n";
+  h += "<script type=\"application/octet-stream\" id=\"hbgs-splats\">" + base64(splat_bytes.data(), splat_bytes.size()) +
        "</script>\n<script>\n";
   h += report_assets::kViewerJs;
   h += "</script>\n</body></html>\n";

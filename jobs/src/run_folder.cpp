@@ -33,14 +33,50 @@ Expected<nlohmann::ordered_json> read_json(const std::string& path, bool allow_m
   return j;
 }
 
-// Merges the single method object in `fresh` into the file at path (written atomically).
-Status merge_json_file(const std::string& path, const std::string& fresh, std::string* note) {
+// Sets `method` to `object` in the JSON file at path, keeping its other members (written
+// atomically; an unreadable file is replaced and *note says so).
+Status merge_json_file(const std::string& path, const std::string& method, nlohmann::ordered_json object, std::string* note) {
   Expected<nlohmann::ordered_json> old = read_json(path, true);
   nlohmann::ordered_json merged = old.ok() ? *old : nlohmann::ordered_json::object();
   if (!old.ok() && note) *note += "replacing unreadable " + path + " (" + old.status().to_string() + ")\n";
-  const nlohmann::ordered_json update = nlohmann::ordered_json::parse(fresh);
-  for (auto it = update.begin(); it != update.end(); ++it) merged[it.key()] = it.value();
-  return platform::write_file_atomic(path, merged.dump(2) + "\n");
+  merged[method] = std::move(object);
+  return platform::write_file_atomic(path, merged.dump(2, ' ', false, nlohmann::ordered_json::error_handler_t::replace) + "\n");
+}
+
+// results.json's method object in the 3DGS schema: "SSIM", "PSNR", "LPIPS" (when computed), with
+// masks "PSNR_masked", "alpha_MAE" and "alpha_IoU", then the members of extra. Non-finite numbers
+// are written as null (JSON has no Inf / NaN).
+nlohmann::ordered_json results_object(const model::EvalResult& r, const nlohmann::json& extra) {
+  nlohmann::ordered_json o = nlohmann::ordered_json::object();
+  o["SSIM"] = r.ssim;
+  o["PSNR"] = r.psnr;
+  if (r.lpips >= 0) o["LPIPS"] = r.lpips;
+  if (r.psnr_masked >= 0) {
+    o["PSNR_masked"] = r.psnr_masked;
+    o["alpha_MAE"] = r.alpha_mae;
+    o["alpha_IoU"] = r.alpha_iou;
+  }
+  for (auto it = extra.begin(); it != extra.end(); ++it) o[it.key()] = it.value();
+  return o;
+}
+
+// per_view.json's method object: the same metrics, each an object of view name -> value.
+nlohmann::ordered_json per_view_object(const model::EvalResult& r) {
+  auto metric = [&r](double model::ViewMetrics::*field) {
+    nlohmann::ordered_json m = nlohmann::ordered_json::object();
+    for (const model::ViewMetrics& v : r.views) m[v.name] = v.*field;
+    return m;
+  };
+  nlohmann::ordered_json o = nlohmann::ordered_json::object();
+  o["SSIM"] = metric(&model::ViewMetrics::ssim);
+  o["PSNR"] = metric(&model::ViewMetrics::psnr);
+  if (r.lpips >= 0) o["LPIPS"] = metric(&model::ViewMetrics::lpips);
+  if (r.psnr_masked >= 0) {
+    o["PSNR_masked"] = metric(&model::ViewMetrics::psnr_masked);
+    o["alpha_MAE"] = metric(&model::ViewMetrics::alpha_mae);
+    o["alpha_IoU"] = metric(&model::ViewMetrics::alpha_iou);
+  }
+  return o;
 }
 
 }  // namespace
@@ -241,11 +277,9 @@ Expected<std::unique_ptr<metrics::LpipsAlex>> load_lpips(const std::string& expl
 
 Status write_eval_files(const std::string& dir, const std::string& method, const model::EvalResult& r,
                         const nlohmann::json& extra, std::string* note) {
-  const std::string dump = extra.dump();
-  const std::string members = dump.size() < 2 ? std::string() : dump.substr(1, dump.size() - 2);
   GS_RETURN_IF_ERROR(platform::make_dirs(dir));
-  GS_RETURN_IF_ERROR(merge_json_file((fs::path(dir) / kResultsJson).string(), model::results_json(r, method, members), note));
-  return merge_json_file((fs::path(dir) / kPerViewJson).string(), model::per_view_json(r, method), note);
+  GS_RETURN_IF_ERROR(merge_json_file((fs::path(dir) / kResultsJson).string(), method, results_object(r, extra), note));
+  return merge_json_file((fs::path(dir) / kPerViewJson).string(), method, per_view_object(r), note);
 }
 
 }  // namespace gs::jobs

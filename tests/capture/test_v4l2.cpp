@@ -9,7 +9,7 @@
 #include <doctest/doctest.h>
 #include <errno.h>
 #include <linux/videodev2.h>
-#include <stb/stb_image.h>        // implemented in gs_io (core/io/image/stb_impl.cpp)
+#include <stb/stb_image.h>        // implemented in gs_io (io/image/stb_impl.cpp)
 #include <stb/stb_image_write.h>  // likewise
 
 #include <algorithm>

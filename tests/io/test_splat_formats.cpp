@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
-// Splat format tests (gs/io/splat_formats.h): round trips of .splat, .spz (v2, v3) and
-// compressed.ply within each format's stated quantisation bound per field, SH degrees 0-3; the
-// dispatcher; malformed files (truncated at every byte, wrong magic and version, counts beyond the
-// data, gzip garbage and bombs, NaN) refused with a message naming the problem; renders of a
+// Splat format tests (gs/io/splat_formats.h): round trips of .splat, .spz (v2, v3, v4) and
+// compressed.ply within each format's stated quantisation bound per field, SH degrees 0-3; .spz v4
+// holding v3's bytes in its ZSTD streams; the dispatcher; malformed files (truncated at every byte,
+// wrong magic and version, counts beyond the data, gzip and ZSTD garbage and bombs, tables of
+// contents that disagree, NaN) refused with a message naming the problem; renders of a
 // round-tripped cloud against the original's.
 #include <cstring>
 #include <random>
@@ -15,6 +16,9 @@
 
 #if GS_TEST_HAVE_ZLIB
 #include <zlib.h>
+#endif
+#if GS_TEST_HAVE_ZSTD
+#include <zstd.h>
 #endif
 
 namespace gs::io {
@@ -75,11 +79,18 @@ Expected<GaussianCloud> parse_as(SplatFormat f, const std::vector<uint8_t>& b, c
 // 1e-5: float32 rounding of values of order 1-10 (a few ULPs) in the decoders.
 constexpr double kFloatSlack = 1e-5;
 
-// Builds without zlib (cross builds) have no .spz: its cases report themselves skipped.
-bool skip_without_spz() {
-  if (spz_supported()) return false;
-  MESSAGE("[SKIPPED: this build has no zlib, so no .spz]");
+// Builds without zlib or libzstd (cross builds) have no .spz of those versions: their cases report
+// themselves skipped.
+bool skip_without_spz(int version) {
+  if (spz_version_supported(version)) return false;
+  MESSAGE("[SKIPPED: this build has no " << (version == 4 ? "libzstd" : "zlib") << ", so no .spz version " << version << "]");
   return true;
+}
+
+SpzWriteOptions spz_version(int version) {
+  SpzWriteOptions o;
+  o.version = version;
+  return o;
 }
 
 #if GS_TEST_HAVE_ZLIB
@@ -130,6 +141,57 @@ Expected<GaussianCloud> parse_spz_header_case(uint32_t magic, uint32_t version, 
 }
 #endif
 
+#if GS_TEST_HAVE_ZSTD
+std::vector<uint8_t> zstd_frame(const uint8_t* data, size_t size) {
+  std::vector<uint8_t> out(ZSTD_compressBound(size));
+  const size_t n = ZSTD_compress(out.data(), out.size(), data, size, 3);
+  REQUIRE_FALSE(ZSTD_isError(n));
+  out.resize(n);
+  return out;
+}
+
+void put_le(std::vector<uint8_t>* b, size_t at, uint64_t v, int bytes) {
+  for (int k = 0; k < bytes; ++k) (*b)[at + size_t(k)] = uint8_t(v >> (8 * k));
+}
+
+// A version-4 file from its header fields and the streams' contents, each compressed by libzstd
+// directly; `toc_sizes`, when not empty, replaces the uncompressed sizes the table declares.
+struct V4Case {
+  uint32_t version = 4, count = 1;
+  uint8_t degree = 0, flags = 0;
+  int stream_count = -1;  // -1: as many as `streams`
+  uint32_t toc_at = 32;
+  std::vector<std::vector<uint8_t>> streams;
+  std::vector<uint64_t> toc_sizes;
+};
+std::vector<uint8_t> make_v4(const V4Case& k) {
+  const size_t streams = k.stream_count < 0 ? k.streams.size() : size_t(k.stream_count);
+  std::vector<uint8_t> b(std::max<size_t>(k.toc_at, 32) + 16 * k.streams.size(), 0);
+  put_le(&b, 0, 0x5053474e, 4);
+  put_le(&b, 4, k.version, 4);
+  put_le(&b, 8, k.count, 4);
+  b[12] = k.degree;
+  b[13] = 12;
+  b[14] = k.flags;
+  b[15] = uint8_t(streams);
+  put_le(&b, 16, k.toc_at, 4);
+  for (size_t s = 0; s < k.streams.size(); ++s) {
+    const std::vector<uint8_t> frame = zstd_frame(k.streams[s].data(), k.streams[s].size());
+    const size_t entry = std::max<size_t>(k.toc_at, 32) + 16 * s;
+    put_le(&b, entry, frame.size(), 8);
+    put_le(&b, entry + 8, s < k.toc_sizes.size() ? k.toc_sizes[s] : k.streams[s].size(), 8);
+    b.insert(b.end(), frame.begin(), frame.end());
+  }
+  return b;
+}
+
+// One splat's streams at SH degree 0: positions 9, alphas 1, colours 3, scales 3, rotations 4 bytes.
+std::vector<std::vector<uint8_t>> one_splat_streams(size_t count = 1) {
+  return {std::vector<uint8_t>(9 * count, 0), std::vector<uint8_t>(count, 200), std::vector<uint8_t>(3 * count, 128),
+          std::vector<uint8_t>(3 * count, 100), std::vector<uint8_t>(4 * count, 0xc0)};
+}
+#endif
+
 TEST_CASE(".splat round trip: float32 position and scale with 8-bit colour and alpha and rotation") {
   for (int degree : {0, 3}) {
     const GaussianCloud c = test::make_test_cloud(500, degree, 11u + uint32_t(degree));
@@ -148,10 +210,10 @@ TEST_CASE(".splat round trip: float32 position and scale with 8-bit colour and a
   }
 }
 
-TEST_CASE(".spz round trip at SH degrees 0 to 3: versions 3 and 2") {
-  if (skip_without_spz()) return;
-  for (int version : {3, 2})
+TEST_CASE(".spz round trip at SH degrees 0 to 3: versions 4, 3 and 2") {
+  for (int version : {4, 3, 2})
     for (int degree = 0; degree <= 3; ++degree) {
+      if (skip_without_spz(version)) break;
       const GaussianCloud c = test::make_test_cloud(400, degree, 100u + uint32_t(degree));
       SpzWriteOptions o;
       o.version = version;
@@ -160,14 +222,14 @@ TEST_CASE(".spz round trip at SH degrees 0 to 3: versions 3 and 2") {
       REQUIRE_MESSAGE(back.ok(), back.status().to_string());
       REQUIRE(back->sh_degree == degree);
       const Errors e = measure(c, *back);
-      print(version == 3 ? ".spz v3" : ".spz v2", e);
+      print((".spz v" + std::to_string(version)).c_str(), e);
       // Position: half a fixed-point step; the writer takes the most fractional bits the largest
       // coordinate (6.5 here, so 20 bits) allows: 2^-21 = 4.8e-7.
       CHECK(e.position <= std::ldexp(1.0, -21) + 1e-7);
       CHECK(e.log_scale <= 1.0 / 32 + 1e-6);       // steps of 1/16 in [-10, 5.94]
       CHECK(e.opacity <= 0.5 / 255 + 1e-7);
       CHECK(e.colour <= 0.5 / 255 * test::kShC0 / 0.15 + 1e-6);  // steps of 1 / (0.15 * 255) in dc
-      if (version == 3) CHECK(e.rotation_deg <= 0.4);  // 10-bit smallest three (analysis in README)
+      if (version >= 3) CHECK(e.rotation_deg <= 0.4);  // 10-bit smallest three (analysis in README)
       CHECK(e.sh1 <= 1.0 / 32 + 1e-6);             // 5 bits: steps of 1/16
       CHECK(e.sh_rest <= 1.0 / 16 + 1e-6);         // 4 bits: steps of 1/8
       if (version == 2) {
@@ -193,7 +255,7 @@ TEST_CASE(".spz round trip at SH degrees 0 to 3: versions 3 and 2") {
 }
 
 TEST_CASE(".spz stores RUB: y and z flip with their quaternion and SH signs") {
-  if (skip_without_spz()) return;
+  if (skip_without_spz(3)) return;
   // One splat at (1, 2, 3) rotated 90 degrees about y, with degree-1 SH terms 0.5 (y), 0.25 (z), 0.125 (x).
   GaussianCloud c;
   c.sh_degree = 1;
@@ -203,7 +265,7 @@ TEST_CASE(".spz stores RUB: y and z flip with their quaternion and SH signs") {
   c.quats = {float(std::sqrt(0.5)), 0, float(std::sqrt(0.5)), 0};
   c.opacity_logits = {0};
   c.sh = {0, 0, 0, 0.5f, 0.5f, 0.5f, 0.25f, 0.25f, 0.25f, 0.125f, 0.125f, 0.125f};
-  const std::vector<uint8_t> bytes = bytes_of(encode_spz(c));
+  const std::vector<uint8_t> bytes = bytes_of(encode_spz(c, spz_version(3)));
   auto back = parse_spz(bytes.data(), bytes.size(), "frame.spz");
   REQUIRE(back.ok());
   // hbgs's coordinates come back (the flips cancel) ...
@@ -243,6 +305,132 @@ TEST_CASE(".spz stores RUB: y and z flip with their quaternion and SH signs") {
   CHECK(raw[sh + 6] == 144);  // +0.125
 #endif
 }
+
+#if GS_TEST_HAVE_ZLIB && GS_TEST_HAVE_ZSTD
+TEST_CASE(".spz version 4: a plain header, a table of contents and v3's attribute bytes as ZSTD frames") {
+  if (skip_without_spz(4) || skip_without_spz(3)) return;
+  for (int degree : {0, 2}) {
+    const GaussianCloud c = test::make_test_cloud(300, degree, 40u + uint32_t(degree));
+    const std::vector<uint8_t> v3 = gunzip(bytes_of(encode_spz(c, spz_version(3))));
+    const std::vector<uint8_t> v4 = bytes_of(encode_spz(c));  // the default version
+    REQUIRE(v4.size() >= 32);
+    auto u32 = [&](size_t at) { return uint32_t(v4[at]) | uint32_t(v4[at + 1]) << 8 | uint32_t(v4[at + 2]) << 16 | uint32_t(v4[at + 3]) << 24; };
+    auto u64 = [&](size_t at) { return uint64_t(u32(at)) | uint64_t(u32(at + 4)) << 32; };
+    CHECK(u32(0) == 0x5053474eu);
+    CHECK(u32(4) == 4u);
+    CHECK(u32(8) == 300u);
+    CHECK(v4[12] == degree);
+    CHECK(v4[13] == v3[13]);  // the same fractional bits
+    CHECK(v4[14] == 0);       // flags
+    const size_t streams = v4[15];
+    CHECK(streams == (degree == 0 ? 5u : 6u));  // the empty SH attribute is left out
+    CHECK(u32(16) == 32u);                       // no extension records: the table follows the header
+    for (size_t k = 20; k < 32; ++k) CHECK(v4[k] == 0);
+    // Each stream decompresses (libzstd directly) to the next attribute of v3's body, in order.
+    const size_t per[6] = {9, 1, 3, 3, 4, size_t(sh_coeff_count(degree) - 1) * 3};
+    size_t at = 32 + 16 * streams, body = 16;
+    for (size_t s = 0; s < streams; ++s) {
+      const uint64_t packed = u64(32 + 16 * s), raw = u64(32 + 16 * s + 8);
+      CAPTURE(s);
+      REQUIRE(raw == per[s] * 300);
+      REQUIRE(at + packed <= v4.size());
+      std::vector<uint8_t> out(raw);
+      REQUIRE(ZSTD_decompress(out.data(), out.size(), v4.data() + at, packed) == raw);
+      CHECK(std::equal(out.begin(), out.end(), v3.begin() + long(body)));
+      at += packed, body += raw;
+    }
+    CHECK(at == v4.size());
+    CHECK(body == v3.size());
+    // And the two read back identically.
+    auto a = parse_spz(v4.data(), v4.size(), "v4.spz");
+    REQUIRE_MESSAGE(a.ok(), a.status().to_string());
+    const std::vector<uint8_t> v3_file = bytes_of(encode_spz(c, spz_version(3)));
+    auto b = parse_spz(v3_file.data(), v3_file.size(), "v3.spz");
+    REQUIRE(b.ok());
+    CHECK(a->means == b->means);
+    CHECK(a->quats == b->quats);
+    CHECK(a->sh == b->sh);
+    CHECK(a->log_scales == b->log_scales);
+    CHECK(a->opacity_logits == b->opacity_logits);
+    MESSAGE("SH degree " << degree << ": v3 " << v3_file.size() << " bytes, v4 " << v4.size() << " bytes");
+  }
+}
+#endif
+
+#if GS_TEST_HAVE_ZSTD
+TEST_CASE("malformed .spz version 4: header, table of contents, streams and ZSTD data") {
+  if (skip_without_spz(4)) return;
+  V4Case ok;
+  ok.streams = one_splat_streams();
+  {
+    const std::vector<uint8_t> b = make_v4(ok);
+    auto r = parse_spz(b.data(), b.size(), "ok.spz");
+    REQUIRE_MESSAGE(r.ok(), r.status().to_string());
+    CHECK(r->size() == 1);
+    CHECK(std::fabs(test::sigmoid(r->opacity_logits[0]) - 200.0 / 255) < 1e-6);
+  }
+  // A file written by another tool may put bytes between the header and the table (tocByteOffset).
+  V4Case later = ok;
+  later.toc_at = 40;
+  {
+    const std::vector<uint8_t> b = make_v4(later);
+    CHECK(parse_spz(b.data(), b.size(), "later.spz").ok());
+  }
+  auto error_of = [](const V4Case& k, const char* name) {
+    const std::vector<uint8_t> b = make_v4(k);
+    return parse_spz(b.data(), b.size(), name).status();
+  };
+  V4Case k = ok;
+  k.version = 3;
+  check_error(error_of(k, "v3plain.spz"), {"v3plain.spz", "version-3 header in the clear", "1f 8b"});
+  k = ok, k.version = 5;
+  check_error(error_of(k, "v5.spz"), {"v5.spz", "version 5"});
+  k = ok, k.flags = 2;
+  check_error(error_of(k, "ext.spz"), {"ext.spz", "extension"});
+  k = ok, k.degree = 4;
+  check_error(error_of(k, "deg.spz"), {"deg.spz", "SH degree 4"});
+  k = ok, k.stream_count = 6;
+  check_error(error_of(k, "n.spz"), {"n.spz", "6 streams", "5 non-empty"});
+  k = ok, k.toc_at = 8;
+  check_error(error_of(k, "toc.spz"), {"toc.spz", "table of contents", "byte 8"});
+  k = ok, k.toc_sizes = {9, 1, 3, 3, 3};  // rotations declared 3 bytes, v4 has 4
+  check_error(error_of(k, "size.spz"), {"size.spz", "stream 4 (rotations)", "declares 3 bytes", "need 4"});
+  k = ok, k.count = 2;  // the table says one splat's sizes
+  check_error(error_of(k, "count.spz"), {"count.spz", "stream 0 (positions)", "2 splats need 18"});
+  // A frame shorter than the table says: it decompresses to fewer bytes.
+  k = ok, k.streams[2] = {128, 128}, k.toc_sizes = {9, 1, 3, 3, 4};
+  check_error(error_of(k, "short.spz"), {"short.spz", "stream 2 (colours)", "decompresses to 2 bytes"});
+  // Longer than the table says.
+  k = ok, k.streams[1] = {1, 2}, k.toc_sizes = {9, 1, 3, 3, 4};
+  check_error(error_of(k, "long.spz"), {"long.spz", "stream 1 (alphas)", "more than the 1 bytes"});
+  // A count no file this small can hold (refused before allocating its 2.3 GB).
+  k = ok, k.count = 100'000'000;
+  k.toc_sizes = {900'000'000, 100'000'000, 300'000'000, 300'000'000, 400'000'000};
+  check_error(error_of(k, "bomb.spz"), {"bomb.spz", "100000000 splats", "compressed bytes"});
+  // Bytes after the last stream; a stream running past the end; garbage in place of a frame.
+  std::vector<uint8_t> b = make_v4(ok);
+  b.push_back(0);
+  check_error(parse_spz(b.data(), b.size(), "tail.spz").status(), {"tail.spz", "1 bytes follow the last stream"});
+  b.resize(b.size() - 3);
+  check_error(parse_spz(b.data(), b.size(), "cut.spz").status(), {"cut.spz", "stream 4 (rotations,", "runs past the end"});
+  b = make_v4(ok);
+  const size_t first_frame = 32 + 16 * 5;
+  for (size_t at = first_frame; at < first_frame + 4; ++at) b[at] ^= 0x55;  // the frame's magic number
+  check_error(parse_spz(b.data(), b.size(), "garbage.spz").status(), {"garbage.spz", "stream 0 (positions)", "corrupt ZSTD"});
+  check_error(parse_spz(b.data(), 20, "short.spz").status(), {"short.spz", "20 bytes", "32-byte"});
+  // No splats: no streams at all, read back as an empty cloud.
+  V4Case empty;
+  empty.count = 0;
+  const std::vector<uint8_t> e = make_v4(empty);
+  CHECK(e.size() == 32);
+  auto r = parse_spz(e.data(), e.size(), "empty.spz");
+  REQUIRE_MESSAGE(r.ok(), r.status().to_string());
+  CHECK(r->size() == 0);
+  const std::vector<uint8_t> written = bytes_of(encode_spz(GaussianCloud{}));
+  CHECK(written.size() == 32);
+  CHECK(parse_spz(written.data(), written.size(), "empty.spz").ok());
+}
+#endif
 
 // compressed.ply: the bound of each field is half a step of its chunk's range.
 TEST_CASE("compressed.ply round trip at SH degrees 0 to 3 within each chunk's quantisation") {
@@ -330,8 +518,8 @@ TEST_CASE("read_gaussians and write_gaussians: every format by name and content"
   for (const Case& k : {Case{"a.ply", SplatFormat::kPly}, Case{"b.compressed.ply", SplatFormat::kCompressedPly},
                         Case{"c.SPLAT", SplatFormat::kAntimatterSplat}, Case{"d.spz", SplatFormat::kSpz}}) {
     const std::string path = dir / k.name;
-    if (k.format == SplatFormat::kSpz && !spz_supported()) {
-      check_error(write_gaussians(path, c), {"d.spz", "no zlib"});
+    if (k.format == SplatFormat::kSpz && !spz_version_supported(4)) {  // the default version
+      check_error(write_gaussians(path, c), {"d.spz", "libzstd"});
       continue;
     }
     REQUIRE_MESSAGE(write_gaussians(path, c).ok(), k.name);
@@ -352,7 +540,7 @@ TEST_CASE("read_gaussians and write_gaussians: every format by name and content"
   SplatFormat f = SplatFormat::kPly;
   REQUIRE(read_gaussians(dir / "plain_name.ply", &f).ok());
   CHECK(f == SplatFormat::kCompressedPly);
-  if (spz_supported()) {
+  if (spz_version_supported(4)) {
     test::write_bytes(dir / "scene.bin", test::read_bytes(dir / "d.spz"));
     REQUIRE(read_gaussians(dir / "scene.bin", &f).ok());
     CHECK(f == SplatFormat::kSpz);
@@ -367,7 +555,7 @@ TEST_CASE("read_gaussians and write_gaussians: every format by name and content"
   GaussianCloud bad = c;
   bad.means[3 * 7 + 1] = NAN;
   for (const char* name : {"n.ply", "n.compressed.ply", "n.splat", "n.spz"}) {
-    if (std::string(name) == "n.spz" && !spz_supported()) continue;
+    if (std::string(name) == "n.spz" && !spz_version_supported(4)) continue;
     check_error(write_gaussians(dir / name, bad), {name, "splat 7", "position"});
     CHECK_FALSE(platform::file_exists(dir / name));
   }
@@ -398,13 +586,15 @@ void check_every_truncation(SplatFormat f, const std::vector<uint8_t>& bytes, co
 TEST_CASE("malformed splat files: truncated at every byte") {
   const GaussianCloud c = test::make_test_cloud(5, 1, 3);
   check_every_truncation(SplatFormat::kAntimatterSplat, bytes_of(encode_antimatter_splat(c)), "cut.splat");
-  if (spz_supported()) check_every_truncation(SplatFormat::kSpz, bytes_of(encode_spz(c)), "cut.spz");
+  for (int version : {2, 3, 4})
+    if (spz_version_supported(version))
+      check_every_truncation(SplatFormat::kSpz, bytes_of(encode_spz(c, spz_version(version))), "cut.spz");
   check_every_truncation(SplatFormat::kCompressedPly, bytes_of(encode_compressed_ply(c)), "cut.compressed.ply");
   check_every_truncation(SplatFormat::kPly, bytes_of(encode_gaussians(c, SplatFormat::kPly)), "cut.ply");
 }
 
 TEST_CASE("malformed .spz: magic, version, counts, gzip garbage and bombs") {
-  if (skip_without_spz()) return;
+  if (skip_without_spz(3)) return;
   check_error(parse_spz(nullptr, 0, "e.spz").status(), {"e.spz", "gzip"});
   const std::string text = "hello, not gzip";
   check_error(parse_spz(reinterpret_cast<const uint8_t*>(text.data()), text.size(), "t.spz").status(), {"t.spz", "1f 8b"});
@@ -413,11 +603,9 @@ TEST_CASE("malformed .spz: magic, version, counts, gzip garbage and bombs") {
   std::mt19937 rng(1);
   for (int k = 0; k < 64; ++k) garbage.push_back(uint8_t(rng()));
   check_error(parse_spz(garbage.data(), garbage.size(), "g.spz").status(), {"g.spz", "gzip"});
-  // Version 4 (its own header outside compression) and other versions.
-  std::vector<uint8_t> v4 = {'N', 'G', 'S', 'P', 4, 0, 0, 0};
-  v4.resize(64);
-  check_error(parse_spz(v4.data(), v4.size(), "v4.spz").status(), {"v4.spz", "version 4", "--spz-version 3"});
+  // A version-4 header inside gzip (version 4 keeps it in the clear); other versions.
 #if GS_TEST_HAVE_ZLIB
+  check_error(parse_spz_header_case(0x5053474e, 4, 1, 0, 0, 30).status(), {"version-4 header inside a gzip stream"});
   check_error(parse_spz_header_case(0x5053474e, 1, 1, 0, 0, 30).status(), {"version 1"});
   check_error(parse_spz_header_case(0x5053474e, 9, 1, 0, 0, 30).status(), {"version 9"});
   check_error(parse_spz_header_case(0x12345678, 3, 1, 0, 0, 30).status(), {"NGSP", "0x12345678"});
@@ -438,18 +626,23 @@ TEST_CASE("malformed .spz: magic, version, counts, gzip garbage and bombs") {
     check_error(parse_spz(bomb.data(), bomb.size(), "bomb.spz").status(), {"bomb.spz", "more than the 60 bytes"});
   }
 #endif
-  // Trailing bytes after the gzip stream.
+  // Trailing bytes after the gzip stream (and after v4's last stream).
   const GaussianCloud c = test::make_test_cloud(3, 0, 1);
-  std::vector<uint8_t> ok = bytes_of(encode_spz(c));
-  ok.push_back(0);
-  check_error(parse_spz(ok.data(), ok.size(), "tail.spz").status(), {"tail.spz", "1 bytes follow"});
-  // A flipped bit inside the compressed data: a gzip error or a CRC mismatch, never a crash.
-  ok.pop_back();
-  for (size_t at = 10; at < ok.size(); at += 3) {
-    std::vector<uint8_t> flipped = ok;
-    flipped[at] ^= 0x10;
-    auto r = parse_spz(flipped.data(), flipped.size(), "flip.spz");
-    if (!r.ok()) CHECK(test::contains(r.status().message(), "flip.spz"));
+  for (int version : {3, 4}) {
+    if (!spz_version_supported(version)) continue;
+    CAPTURE(version);
+    std::vector<uint8_t> ok = bytes_of(encode_spz(c, spz_version(version)));
+    ok.push_back(0);
+    check_error(parse_spz(ok.data(), ok.size(), "tail.spz").status(), {"tail.spz", "1 bytes follow"});
+    // A flipped bit inside the compressed data: a gzip or ZSTD error, a CRC mismatch or other
+    // splats, never a crash.
+    ok.pop_back();
+    for (size_t at = 10; at < ok.size(); at += 3) {
+      std::vector<uint8_t> flipped = ok;
+      flipped[at] ^= 0x10;
+      auto r = parse_spz(flipped.data(), flipped.size(), "flip.spz");
+      if (!r.ok()) CHECK(test::contains(r.status().message(), "flip.spz"));
+    }
   }
 }
 
@@ -513,7 +706,7 @@ TEST_CASE("the fuzz seed corpora of the splat formats are valid files") {
   const std::string corpus = std::string(GS_SOURCE_DIR) + "/fuzz/corpus/";
   size_t files = 0;
   for (const char* harness : {"splat", "spz", "compressed_ply"}) {
-    if (std::string(harness) == "spz" && !spz_supported()) continue;
+    if (std::string(harness) == "spz" && !spz_supported()) continue;  // seeds of every version
     for (const auto& entry : fs::directory_iterator(corpus + harness)) {
       std::vector<uint8_t> b = test::read_bytes(entry.path().string());
       REQUIRE_FALSE(b.empty());
@@ -536,7 +729,7 @@ TEST_CASE("the fuzz seed corpora of the splat formats are valid files") {
       ++files;
     }
   }
-  CHECK(files >= (spz_supported() ? 8u : 6u));
+  CHECK(files >= (spz_supported() ? 10u : 6u));
 }
 
 TEST_CASE("renders after a round trip through each format match the original") {
@@ -562,7 +755,7 @@ TEST_CASE("renders after a round trip through each format match the original") {
     };
     for (const Case& k : {Case{SplatFormat::kPly, 1e9}, Case{SplatFormat::kAntimatterSplat, 50.0},
                           Case{SplatFormat::kSpz, 33.0}, Case{SplatFormat::kCompressedPly, 40.0}}) {
-      if (k.format == SplatFormat::kSpz && !spz_supported()) continue;
+      if (k.format == SplatFormat::kSpz && !spz_version_supported(4)) continue;  // the default version
       const std::vector<uint8_t> bytes = bytes_of(encode_gaussians(c, k.format));
       auto back = parse_as(k.format, bytes, "render");
       REQUIRE(back.ok());

@@ -13,9 +13,10 @@
 
 #include "gs/model/bake.h"
 #include "gs/model/evaluate.h"
+#include "gs/model/model_renderer.h"
 #include "gs/model/trainer.h"
 #include "gs/pose/pose.h"
-#include "gs/pose/register.h"
+#include "gs/model/register.h"
 #include "gs/render.h"
 #include "gs/scene_init.h"
 #include "support/alloc_counter.h"

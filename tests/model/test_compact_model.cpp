@@ -14,10 +14,11 @@
 #include <vector>
 
 #include "gs/hash.h"
+#include "gs/model/byte_rans.h"
 #include "gs/model/compact_model.h"
 #include "gs/model/hybrid_model.h"
 #include "gs/model/quant_decoder.h"
-#include "gs/model/trainer.h"
+#include "gs/model/model_renderer.h"
 #include "support/alloc_counter.h"
 #include "support/model_fixtures.h"
 #include "support/temp_dir.h"

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Photometric alignment of noisy training poses to the SfM points (gs/pose/point_alignment.h) on
+// Photometric alignment of noisy training poses to the SfM points (gs/model/point_alignment.h) on
 // the real fox scene (../shared/data/fox; skipped without it): every training pose rotated by 2
 // degrees and moved by 2 % of the camera radius, then aligned with the points' COLMAP colours and
 // with leave-one-out means; plus the refusal of bad inputs (no data needed).
@@ -13,7 +13,7 @@
 
 #include "gs/io/colmap.h"
 #include "gs/platform/thread_pool.h"
-#include "gs/pose/point_alignment.h"
+#include "gs/model/point_alignment.h"
 #include "gs/pose/pose.h"
 
 namespace gs::pose {

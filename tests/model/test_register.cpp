@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Registration against a frozen model (gs/pose/register.h) on a generated model: anchors on a
+// Registration against a frozen model (gs/model/register.h) on a generated model: anchors on a
 // noisy sphere with random features and offsets (so the render is textured), targets rendered by
 // the same model at a known pose. Checks recovery from a perturbed start with both solvers, the
 // allocation-free loop, the time budget, and the hard cases: a start pose looking away from the
@@ -12,10 +12,10 @@
 #include <vector>
 
 #include "gs/io/image.h"
-#include "gs/model/trainer.h"
+#include "gs/model/model_renderer.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
-#include "gs/pose/register.h"
+#include "gs/model/register.h"
 #include "support/alloc_counter.h"
 #include "support/model_fixtures.h"
 #include "support/reduced.h"

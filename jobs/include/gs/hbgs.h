@@ -7,7 +7,7 @@
 // render.h, gs/pose/pose.h (hbgs::core); gs/io/ COLMAP, NeRF-style transforms.json, images,
 // composites, PLY and the splat exchange formats (hbgs::io); gs/metrics/ PSNR, SSIM, LPIPS
 // (hbgs::metrics); gs/model/ the hybrid anchor model, trainer, backgrounds and baking to plain
-// Gaussians, gs/pose/register.h and point_alignment.h (hbgs::model); gs/capture/ cameras, video,
+// Gaussians, gs/model/register.h and point_alignment.h (hbgs::model); gs/capture/ cameras, video,
 // COLMAP driver (hbgs::capture); gs/jobs/ whole jobs, export included (hbgs::jobs).
 //
 // Lifecycle: create (validate everything, plan and allocate) -> run (allocation-free calls) ->
@@ -42,8 +42,9 @@
 #include "gs/model/compact_model.h"
 #include "gs/model/evaluate.h"
 #include "gs/model/hybrid_model.h"
+#include "gs/model/model_renderer.h"
 #include "gs/model/trainer.h"
-#include "gs/pose/register.h"
+#include "gs/model/register.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
 #include "gs/render.h"

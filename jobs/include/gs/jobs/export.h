@@ -30,6 +30,7 @@ struct ExportRunOptions {
   int distill_iterations = 2000;  // steps of distillation against the model's renders (0: the fit only)
   bool evaluate = true;     // test PSNR of the model and of the written Gaussians
   uint64_t seed = 0;
+  io::SplatWriteOptions write;  // the format's options: write.spz.version (4, or 3 for older readers)
 };
 
 struct ExportRunSummary {

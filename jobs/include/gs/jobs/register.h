@@ -13,7 +13,7 @@
 
 #include "gs/camera.h"
 #include "gs/jobs/run_folder.h"
-#include "gs/pose/register.h"
+#include "gs/model/register.h"
 #include "gs/pose/pose.h"
 #include "gs/status.h"
 
@@ -22,7 +22,7 @@ namespace gs::jobs {
 struct RegisterRunOptions {
   std::string input;    // run folder (from train_run) or .hbgs model file
   std::string dataset;  // "" : the one recorded in the run's run.json
-  std::string solver = "keyframe";  // "keyframe", "lm" or "adam" (gs/pose/register.h)
+  std::string solver = "keyframe";  // "keyframe", "lm" or "adam" (gs/model/register.h)
   int downscale = 1;                // resolution divisor of the finest level (4: quarter resolution)
   bool fixed_point = false;         // on-device mode: fixed-point keyframe renders (RegisterOptions::fixed_point)
   double time_budget_ms = 0;        // > 0: stop a view after this long, keeping the best pose

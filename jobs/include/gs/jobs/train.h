@@ -13,6 +13,12 @@
 //
 // TrainRunOptions holds every default once: the CLI binds its flags to a default-constructed one,
 // and bench_train and the examples start from the same struct, so all run one configuration.
+//
+// Structure from motion (pose_init "sfm") runs COLMAP through the capture library, which the jobs
+// library does not link (the on-device set base..jobs has no capture): the program passes an
+// SfmPoseInitializer (TrainRunOptions::sfm_pose_init). `hbgs` passes one made of gs_capture's
+// choose_sfm_images and init_poses_by_sfm (apps/hbgs/colmap_pose_init.cpp); `hbgs-device` passes
+// none and refuses --pose-init sfm.
 #pragma once
 
 #include <cstdint>
@@ -31,6 +37,8 @@ namespace gs::platform { class ThreadPool; }
 namespace gs::simd { struct KernelTable; }
 
 namespace gs::jobs {
+
+class SfmPoseInitializer;
 
 struct TrainRunOptions {
   std::string dataset;  // COLMAP dataset folder with SfM points (images/, sparse/0/)
@@ -60,6 +68,9 @@ struct TrainRunOptions {
   std::string pose_init = "none";  // "none" or "sfm"
   std::string colmap = "colmap";   // the COLMAP program for pose_init "sfm"
   std::string sfm_images = "auto";
+  // What pose_init "sfm" runs (not owned; null: pose_init "sfm" is refused, except to resume a run
+  // whose poses SfM already initialised). Not an option: run.json does not record it.
+  const SfmPoseInitializer* sfm_pose_init = nullptr;
   int coarse_levels = -1;    // coarse-to-fine halvings (-1: 2 when optimising poses without SfM init, else 0)
   int feature_refresh = -1;  // image features recomputed every N iterations (-1: 250 when optimising poses, else 0)
   double pose_lr = 5e-5;     // initial pose learning rate (rad; translation x scene extent)
@@ -90,6 +101,39 @@ struct TrainEvent {
 };
 using TrainProgressFn = std::function<void(const TrainEvent&)>;
 
+// Global pose initialisation by structure from motion for pose_init "sfm", injected through
+// TrainRunOptions::sfm_pose_init. The job then aligns the result to the SfM points and reports it.
+struct SfmPoseInitRequest {
+  std::string dataset_folder;                 // the dataset's folder (sfm_images are looked up there)
+  std::string sfm_images;                     // TrainRunOptions::sfm_images: "auto", "train" or a folder
+  std::string colmap;                         // the COLMAP program
+  int threads = 0;                            // 0: COLMAP's default
+  std::vector<const io::DatasetView*> views;  // the training views (images, cameras)
+  std::vector<std::string> names;             // [views] their unique names
+  const float* points_xyz = nullptr;          // the dataset's SfM points [points, 3]
+  size_t points = 0;
+  std::string work_dir;                       // created and kept (images, database, COLMAP's log)
+};
+struct SfmPoseInitResult {
+  std::vector<Pose> poses;          // [views] the registered views' poses replaced, the others as given
+  std::vector<uint8_t> registered;  // [views] 1 where SfM registered the view
+  // The report (results.json "sfm_init"): which images COLMAP saw ("training images" or a folder)
+  // and their size, the reconstruction, and the Sim(3) fit into the dataset's frame.
+  std::string images;
+  int image_width = 0, image_height = 0;
+  int views = 0, registered_views = 0, colmap_points = 0, icp_pairs = 0, icp_iterations = 0;
+  double seconds = 0, centre_fit_rms = 0, icp_median_before = 0, icp_median_after = 0;
+};
+class SfmPoseInitializer {
+ public:
+  virtual ~SfmPoseInitializer() = default;
+  // What can be checked before the run folder is touched: the COLMAP program, an explicit
+  // sfm_images folder. Errors name the option.
+  virtual Status check(const std::string& dataset_folder, const std::string& sfm_images, const std::string& colmap) const = 0;
+  // Estimates the training poses; progress gets kNote, kStage and kDetail events. Errors name the option.
+  virtual Status run(const SfmPoseInitRequest& request, const TrainProgressFn& progress, SfmPoseInitResult* result) const = 0;
+};
+
 // A prepared training: the dataset loaded (with pose noise), the poses initialised, the model and
 // trainer created; nothing written except SfM's work folder (<work_dir>/sfm_init with pose_init sfm).
 // bench_train steps one of these; train_run adds the run folder, evaluation and checkpoints.
@@ -111,7 +155,7 @@ class TrainSession {
   TrainSession();
   struct Impl;
   std::unique_ptr<Impl> impl_;
-  friend struct TrainRunAccess;
+  friend class TrainRun;  // train_run's steps (train_run.cpp)
 };
 
 struct TrainRunSummary {

@@ -1,0 +1,100 @@
+// SPDX-License-Identifier: MIT
+// The prepared training session (gs/jobs/train.h TrainSession): the dataset with its pose noise,
+// the pose stages (train_pose_stages.cpp), the model and the trainer.
+#include <algorithm>
+
+#include "gs/jobs/run_folder.h"
+#include "train_session_state.h"
+
+namespace gs::jobs {
+
+Status no_sfm_pose_initializer() {
+  return invalid_argument(
+      "--pose-init sfm: this program has no structure-from-motion pose initialiser (COLMAP runs through the capture "
+      "library, which on-device builds such as hbgs-device leave out); initialise the poses with the full hbgs program, "
+      "or train with --pose-init none");
+}
+
+TrainSession::TrainSession() : impl_(std::make_unique<Impl>()) {}
+TrainSession::~TrainSession() = default;
+model::Trainer& TrainSession::trainer() { return *impl_->trainer; }
+platform::ThreadPool& TrainSession::pool() { return *impl_->pool; }
+const simd::KernelTable& TrainSession::kernels() const { return *impl_->kernels; }
+const std::vector<const io::DatasetView*>& TrainSession::train_views() const { return impl_->train_views; }
+const std::vector<const io::DatasetView*>& TrainSession::test_views() const { return impl_->test_views; }
+pose::PoseErrors TrainSession::train_pose_errors(bool align) const {
+  return impl_->errors(poses_of(impl_->trainer->cameras()), align);
+}
+
+Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptions& options, const TrainProgressFn& progress,
+                                                             const std::string& work_dir) {
+  const TrainProgressFn say = progress ? progress : [](const TrainEvent&) {};
+  Expected<ResolvedTraining> resolved = resolve_training(options);
+  if (!resolved.ok()) return resolved.status();
+  if (options.pose_init != "none" && options.pose_init != "sfm")
+    return invalid_argument("--pose-init: '" + options.pose_init + "' is not one of none, sfm");
+  if (options.pose_init == "sfm" && !options.optimize_poses) return invalid_argument("--pose-init sfm needs --optimize-poses");
+  if (options.pose_init == "sfm" && !options.resume && !options.sfm_pose_init) return no_sfm_pose_initializer();
+
+  std::unique_ptr<TrainSession> session(new TrainSession());
+  Impl& d = *session->impl_;
+  d.options = options;
+  Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(options.dataset, options.max_width, "all");
+  if (!data.ok()) return data.status();
+  d.dataset = std::move((*data)->dataset);
+  GS_RETURN_IF_ERROR(apply_pose_noise(&d.dataset, options.pose_noise, options.pose_noise_on, &d.truth));
+  const size_t npoints = d.dataset.points_xyz.size() / 3;
+  if (npoints == 0)
+    return invalid_argument(options.dataset + ": the dataset has no SfM points (sparse/0/points3D); training places its anchors on them");
+  std::vector<const Camera*> train_cameras;
+  for (size_t i = 0; i < d.dataset.views.size(); ++i) {
+    const io::DatasetView& v = d.dataset.views[i];
+    (v.is_test ? d.test_views : d.train_views).push_back(&v);
+    if (!v.is_test) {
+      train_cameras.push_back(&v.camera);
+      d.train_index.push_back(i);
+      d.train_names.push_back(v.name);
+    }
+  }
+  if (d.train_views.empty()) return invalid_argument(options.dataset + ": no training views (every view is a test view)");
+
+  std::vector<Pose> input;
+  for (const io::DatasetView* v : d.train_views) input.push_back(v->camera.pose);
+  d.input_errors = d.errors(input, true);
+  d.pool = std::make_unique<platform::ThreadPool>(options.threads);
+  if (options.optimize_poses && options.pose_init == "sfm") {
+    // Views SfM could not register keep their given pose, which may be far off: they are held back
+    // from training and registered against the model every 5 % of the run from 20 % to 60 % of it
+    // (earlier, the model is too rough to register against), each joining once it converges (on a
+    // resume the checkpoint says which are still held).
+    resolved->train.held_back_register_every = std::max(1, options.iterations / 20);
+    resolved->train.held_back_register_from = options.iterations / 5;
+    resolved->train.held_back_register_until = options.iterations * 3 / 5;
+    if (!options.resume) {
+      GS_RETURN_IF_ERROR(d.init_by_sfm(work_dir, say));
+      if (!d.sfm_registered.empty() && std::find(d.sfm_registered.begin(), d.sfm_registered.end(), uint8_t(0)) != d.sfm_registered.end()) {
+        resolved->train.held_back_views.assign(d.sfm_registered.size(), 0);
+        for (size_t i = 0; i < d.sfm_registered.size(); ++i) resolved->train.held_back_views[i] = d.sfm_registered[i] ? 0 : 1;
+      }
+    }
+  }
+  // Point alignment matches the images to the points' colours: random points (a NeRF-style dataset
+  // without a point cloud) are grey and lie nowhere in particular, so they would pull the poses away.
+  const bool points_meaningful = d.dataset.points_source != io::PointsSource::kRandom;
+  if (options.optimize_poses && options.point_align && !options.resume) {
+    if (points_meaningful) GS_RETURN_IF_ERROR(d.align_to_points(say));
+    else say(text_event(TrainEvent::kNote, "point alignment skipped: the dataset's points are random (no point cloud)"));
+  }
+
+  d.kernels = options.isa.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(options.isa.c_str());
+  if (!d.kernels) return invalid_argument("--isa: kernel table '" + options.isa + "' is not compiled in or not supported by this CPU");
+  Expected<model::HybridModel> m = model::create_model(resolved->model, d.dataset.points_xyz.data(), npoints,
+                                                       model::cameras_extent(train_cameras), options.seed);
+  if (!m.ok()) return m.status();
+  Expected<std::unique_ptr<model::Trainer>> trainer =
+      model::Trainer::create(std::move(m).value(), d.train_views, resolved->train, d.pool.get(), d.kernels);
+  if (!trainer.ok()) return trainer.status();
+  d.trainer = std::move(trainer).value();
+  return session;
+}
+}  // namespace gs::jobs

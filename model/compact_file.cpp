@@ -1,0 +1,261 @@
+// SPDX-License-Identifier: MIT
+// The compact model file (gs/model/compact_model.h): "HBGSCMPT", version, header, the channel
+// streams coded with byte rANS (gs/model/byte_rans.h), raw MLP blocks and an FNV-1a 64 trailer;
+// the reader checks every count against the configuration and the bytes present.
+#include <cmath>
+#include <cstring>
+
+#include "byte_codec.h"
+#include "gs/model/byte_rans.h"
+#include "gs/model/compact_model.h"
+#include "gs/platform/file.h"
+#include "quantize.h"
+
+namespace gs::model {
+
+bool is_compact_file(const uint8_t* data, size_t size) { return size >= 8 && std::memcmp(data, kCompactMagic, 8) == 0; }
+
+namespace {
+
+// Channel ch of a row-major [rows, C] byte array as one stream.
+template <class T>
+std::vector<uint8_t> channel_bytes(const std::vector<T>& v, size_t rows, size_t C, size_t ch) {
+  std::vector<uint8_t> s(rows);
+  for (size_t r = 0; r < rows; ++r) s[r] = uint8_t(v[r * C + ch]);
+  return s;
+}
+
+void write_floats(detail::ByteWriter* w, const std::vector<float>& v) { w->floats(v.data(), v.size()); }
+
+}  // namespace
+
+std::vector<uint8_t> serialize_compact(const CompactModel& m) {
+  detail::ByteWriter w;
+  const ModelConfig& c = m.config;
+  const size_t M = m.anchor_count, K = size_t(c.k), F = size_t(c.feature_dim);
+  w.raw(kCompactMagic, 8);
+  w.u32(kCompactFileVersion);
+  detail::write_model_header(&w, c, m.voxel_size, m.scene_extent);
+  w.u64(M);
+  w.u64(m.source_anchors);
+  w.u32(m.calibration_views);
+  w.i32(m.residual_bits);
+  for (double o : m.origin) w.f64(o);
+  write_floats(&w, m.feature_scale);
+  if (uses_image_features(c.image_features)) {
+    w.floats(m.image_lo, kImageRawDim);
+    w.floats(m.image_hi, kImageRawDim);
+  }
+  // Positions: x as the difference to the previous row (rows are sorted by x), y and z as they
+  // are; each as 3 byte streams (low, middle, high).
+  std::vector<uint8_t> s(M);
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b) {
+      for (size_t r = 0; r < M; ++r) {
+        const uint32_t v = a == 0 ? m.pos_q[3 * r] - (r ? m.pos_q[3 * (r - 1)] : 0u) : m.pos_q[3 * r + size_t(a)];
+        s[r] = uint8_t(v >> (8 * b));
+      }
+      detail::rans_encode_bytes(s.data(), M, &w.bytes);
+    }
+  for (int b = 0; b < 2; ++b) {
+    for (size_t r = 0; r < M; ++r) s[r] = uint8_t(m.offset_scale[r] >> (8 * b));
+    detail::rans_encode_bytes(s.data(), M, &w.bytes);
+  }
+  for (size_t ch = 0; ch < 3 * K; ++ch) detail::rans_encode_bytes(channel_bytes(m.offsets, M, 3 * K, ch).data(), M, &w.bytes);
+  for (size_t ch = 0; ch < 6; ++ch)
+    for (int b = 0; b < 2; ++b) {
+      for (size_t r = 0; r < M; ++r) s[r] = uint8_t(m.log_scales[6 * r + ch] >> (8 * b));
+      detail::rans_encode_bytes(s.data(), M, &w.bytes);
+    }
+  for (size_t ch = 0; ch < F; ++ch) detail::rans_encode_bytes(channel_bytes(m.features, M, F, ch).data(), M, &w.bytes);
+  if (uses_image_features(c.image_features))
+    for (size_t ch = 0; ch < size_t(kImageRawDim); ++ch)
+      detail::rans_encode_bytes(channel_bytes(m.image_raw, M, kImageRawDim, ch).data(), M, &w.bytes);
+  for (int id = 0; id < kMlpCount; ++id) {
+    if (id == kMlpImage && !uses_image_features(c.image_features)) continue;
+    const QuantMlp& q = m.mlps[id];
+    w.i32(q.shape.in);
+    w.i32(q.shape.hidden);
+    w.i32(q.shape.out);
+    w.i32(int32_t(q.shape.act2));
+    w.raw(q.w1.data(), q.w1.size());
+    write_floats(&w, q.w1_scale);
+    write_floats(&w, q.b1);
+    w.raw(q.w2.data(), q.w2.size());
+    write_floats(&w, q.w2_scale);
+    write_floats(&w, q.b2);
+    write_floats(&w, q.ranges.in_absmax);
+    write_floats(&w, q.ranges.hidden_max);
+    write_floats(&w, q.ranges.out_absmax);
+  }
+  w.u64(detail::fnv1a64(w.bytes.data(), w.bytes.size()));
+  return std::move(w.bytes);
+}
+
+Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, const std::string& source) {
+  detail::ByteReader r(data, size, source);
+  char magic[8] = {};
+  if (!r.bytes(magic, 8, "the file signature")) return r.status();
+  if (std::memcmp(magic, kCompactMagic, 8) != 0)
+    return parse_error(source + ": not an hbgs compact model file (the first 8 bytes are not \"HBGSCMPT\")");
+  const uint32_t version = r.u32("the format version");
+  if (!r.status().ok()) return r.status();
+  if (version != kCompactFileVersion)
+    return unsupported(source + ": compact model format version " + std::to_string(version) + ", but this hbgs reads version " +
+                       std::to_string(kCompactFileVersion) + " (remake it with hbgs compact)");
+  // The checksum covers the whole file and is verified before any size is trusted.
+  if (size < 20 || detail::fnv1a64(data, size - 8) != bytes::load_u64(data + size - 8))
+    return parse_error(source + ": checksum mismatch (the file is truncated or corrupt)");
+  const size_t body_end = size - 8;
+  CompactModel m;
+  ModelConfig& c = m.config;
+  detail::read_model_header(&r, &c, &m.voxel_size, &m.scene_extent);
+  const uint64_t M = r.u64("the anchor count");
+  m.source_anchors = r.u64("the source anchor count");
+  m.calibration_views = r.u32("the calibration view count");
+  m.residual_bits = r.i32("the position residual bits");
+  for (double& o : m.origin) o = r.f64("the position origin");
+  if (!r.status().ok()) return r.status();
+  if (Status valid = c.validate(); !valid.ok()) return parse_error(source + ": invalid configuration: " + valid.message());
+  auto bad = [&](const std::string& field, const std::string& expected) {
+    return parse_error(source + ": " + field + " " + expected);
+  };
+  if (!(m.voxel_size > 0) || !std::isfinite(m.voxel_size)) return bad("voxel size", "must be positive and finite");
+  if (!(m.scene_extent > 0) || !std::isfinite(m.scene_extent)) return bad("scene extent", "must be positive and finite");
+  if (m.residual_bits < 0 || m.residual_bits > 12)
+    return bad("position residual bits " + std::to_string(m.residual_bits), "must be in 0..12");
+  for (double o : m.origin)
+    if (!std::isfinite(o) || std::fabs(o) > 1e30) return bad("position origin", "must be finite");
+  if (M > c.anchor_capacity())
+    return bad("anchor count " + std::to_string(M), "exceeds the model's own budget of " + std::to_string(c.anchor_capacity()));
+  // Every anchor codes 3 + 3k + 6 + F (+ 13) values; hbgs never writes fewer than one byte per
+  // anchor, so a count above the file size is corrupt (and cannot make the reader allocate more
+  // than a few hundred bytes per byte of file).
+  if (M > size) return bad("anchor count " + std::to_string(M), "is more than the file's " + std::to_string(size) + " bytes can hold");
+  m.anchor_count = size_t(M);
+  const size_t K = size_t(c.k), F = size_t(c.feature_dim), R = uses_image_features(c.image_features) ? size_t(kImageRawDim) : 0;
+  auto floats = [&](std::vector<float>* v, size_t n, const char* what, bool nonneg) -> Status {
+    v->assign(n, 0.0f);
+    if (!r.floats(v->data(), n, what)) return r.status();
+    for (float x : *v)
+      if (!std::isfinite(x) || (nonneg && x < 0)) return bad(what, "must be finite" + std::string(nonneg ? " and >= 0" : ""));
+    return Status::Ok();
+  };
+  GS_RETURN_IF_ERROR(floats(&m.feature_scale, F, "feature scales", true));
+  if (R) {
+    std::vector<float> lo, hi;
+    GS_RETURN_IF_ERROR(floats(&lo, R, "image feature minima", false));
+    GS_RETURN_IF_ERROR(floats(&hi, R, "image feature maxima", false));
+    for (size_t ch = 0; ch < R; ++ch) {
+      if (lo[ch] > hi[ch]) return bad("image feature range of channel " + std::to_string(ch), "must have minimum <= maximum");
+      m.image_lo[ch] = lo[ch];
+      m.image_hi[ch] = hi[ch];
+    }
+  }
+  size_t pos = r.offset();
+  std::vector<uint8_t> s(static_cast<size_t>(M));
+  std::string err;
+  auto stream = [&](const std::string& what) -> Status {
+    if (!detail::rans_decode_bytes(data, body_end, &pos, size_t(M), s.data(), &err))
+      return parse_error(source + ": " + what + " stream at byte " + std::to_string(pos) + ": " + err);
+    return Status::Ok();
+  };
+  m.pos_q.assign(size_t(M) * 3, 0);
+  static const char* const kAxis[3] = {"x", "y", "z"};
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b) {
+      GS_RETURN_IF_ERROR(stream(std::string("position ") + kAxis[a]));
+      for (size_t i = 0; i < M; ++i) m.pos_q[3 * i + size_t(a)] |= uint32_t(s[i]) << (8 * b);
+    }
+  for (size_t i = 1; i < M; ++i) {  // undo the x differences; the sum must stay a 24-bit value
+    const uint64_t x = uint64_t(m.pos_q[3 * i]) + m.pos_q[3 * (i - 1)];
+    if (x > detail::kMaxPositionQ) return bad("position x of anchor " + std::to_string(i), "exceeds 2^24 grid steps");
+    m.pos_q[3 * i] = uint32_t(x);
+  }
+  m.offset_scale.assign(size_t(M), 0);
+  for (int b = 0; b < 2; ++b) {
+    GS_RETURN_IF_ERROR(stream("offset scale"));
+    for (size_t i = 0; i < M; ++i) m.offset_scale[i] |= uint16_t(s[i] << (8 * b));
+  }
+  for (size_t i = 0; i < M; ++i)
+    if ((m.offset_scale[i] & 0x7c00u) == 0x7c00u || (m.offset_scale[i] & 0x8000u))
+      return bad("offset scale of anchor " + std::to_string(i), "must be finite and >= 0");
+  m.offsets.assign(size_t(M) * 3 * K, 0);
+  for (size_t ch = 0; ch < 3 * K; ++ch) {
+    GS_RETURN_IF_ERROR(stream("offset channel " + std::to_string(ch)));
+    for (size_t i = 0; i < M; ++i) m.offsets[i * 3 * K + ch] = int8_t(s[i]);
+  }
+  m.log_scales.assign(size_t(M) * 6, 0);
+  for (size_t ch = 0; ch < 6; ++ch)
+    for (int b = 0; b < 2; ++b) {
+      GS_RETURN_IF_ERROR(stream("log-scale channel " + std::to_string(ch)));
+      for (size_t i = 0; i < M; ++i) m.log_scales[6 * i + ch] |= uint16_t(s[i] << (8 * b));
+    }
+  for (size_t i = 0; i < M * 6; ++i)
+    if ((m.log_scales[i] & 0x7c00u) == 0x7c00u) return bad("log-scale of anchor " + std::to_string(i / 6), "is not finite");
+  m.features.assign(size_t(M) * F, 0);
+  for (size_t ch = 0; ch < F; ++ch) {
+    GS_RETURN_IF_ERROR(stream("feature channel " + std::to_string(ch)));
+    for (size_t i = 0; i < M; ++i) m.features[i * F + ch] = int8_t(s[i]);
+  }
+  m.image_raw.assign(size_t(M) * R, 0);
+  for (size_t ch = 0; ch < R; ++ch) {
+    GS_RETURN_IF_ERROR(stream("image feature channel " + std::to_string(ch)));
+    for (size_t i = 0; i < M; ++i) m.image_raw[i * R + ch] = s[i];
+  }
+  detail::ByteReader t(data, body_end, source);
+  t.skip(pos);
+  for (int id = 0; id < kMlpCount; ++id) {
+    if (id == kMlpImage && !uses_image_features(c.image_features)) continue;
+    QuantMlp& q = m.mlps[id];
+    simd::MlpShape sh;
+    sh.in = t.i32("an MLP shape");
+    sh.hidden = t.i32("an MLP shape");
+    sh.out = t.i32("an MLP shape");
+    sh.act2 = simd::MlpAct(t.i32("an MLP activation"));
+    if (!t.status().ok()) return t.status();
+    const simd::MlpShape want = model_mlp_shape(c, id);
+    if (sh.in != want.in || sh.hidden != want.hidden || sh.out != want.out || sh.act2 != want.act2)
+      return bad("MLP " + std::to_string(id) + " shape " + std::to_string(sh.in) + "-" + std::to_string(sh.hidden) + "-" +
+                     std::to_string(sh.out),
+                 "does not match the configuration (" + std::to_string(want.in) + "-" + std::to_string(want.hidden) + "-" +
+                     std::to_string(want.out) + ")");
+    q.shape = sh;
+    const size_t I = size_t(sh.in), H = size_t(sh.hidden), O = size_t(sh.out);
+    q.w1.assign(H * I, 0);
+    if (!t.bytes(q.w1.data(), q.w1.size(), "MLP weights")) return t.status();
+    auto fl = [&](std::vector<float>* v, size_t n, const char* what, bool nonneg) -> Status {
+      v->assign(n, 0.0f);
+      if (!t.floats(v->data(), n, what)) return t.status();
+      for (float x : *v)
+        if (!std::isfinite(x) || (nonneg && x < 0))
+          return bad(std::string("MLP ") + std::to_string(id) + " " + what, "must be finite" + std::string(nonneg ? " and >= 0" : ""));
+      return Status::Ok();
+    };
+    GS_RETURN_IF_ERROR(fl(&q.w1_scale, H, "weight scales", true));
+    GS_RETURN_IF_ERROR(fl(&q.b1, H, "biases", false));
+    q.w2.assign(O * H, 0);
+    if (!t.bytes(q.w2.data(), q.w2.size(), "MLP weights")) return t.status();
+    GS_RETURN_IF_ERROR(fl(&q.w2_scale, O, "weight scales", true));
+    GS_RETURN_IF_ERROR(fl(&q.b2, O, "biases", false));
+    GS_RETURN_IF_ERROR(fl(&q.ranges.in_absmax, I, "input ranges", true));
+    GS_RETURN_IF_ERROR(fl(&q.ranges.hidden_max, H, "hidden ranges", true));
+    GS_RETURN_IF_ERROR(fl(&q.ranges.out_absmax, O, "output ranges", true));
+  }
+  if (t.offset() != body_end)
+    return parse_error(source + ": " + std::to_string(body_end - t.offset()) + " unexpected bytes before the checksum");
+  return m;
+}
+
+Status save_compact(const CompactModel& model, const std::string& path) {
+  const std::vector<uint8_t> bytes = serialize_compact(model);
+  return platform::write_file_atomic(path, bytes.data(), bytes.size());
+}
+
+Expected<CompactModel> load_compact(const std::string& path) {
+  Expected<std::vector<uint8_t>> bytes = platform::read_file(path);
+  if (!bytes.ok()) return bytes.status();
+  return deserialize_compact(bytes->data(), bytes->size(), path);
+}
+
+}  // namespace gs::model

@@ -1,0 +1,249 @@
+// SPDX-License-Identifier: MIT
+// Private to gs_model: the float Backend of the step graph (gs/model/step_graph.h) used by the
+// trainer and the model renderer: SIMD MLP kernels split over the thread pool in a fixed number of
+// row chunks (so results do not depend on the thread count), gs::Renderer and the SIMD loss.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "gs/model/decode.h"
+#include "gs/model/hybrid_model.h"
+#include "gs/model/quant_decoder.h"
+#include "gs/model/step_graph.h"
+#include "gs/platform/thread_pool.h"
+#include "gs/render.h"
+#include "gs/simd/kernel_table.h"
+
+namespace gs::model::detail {
+
+// The step graph's view of a model's live anchors and MLPs.
+inline ModelParamsT<float> model_params(const HybridModel& model) {
+  ModelParamsT<float> p;
+  const bool paper = uses_image_features(model.config.image_features);
+  p.anchors.count = model.anchor_count;
+  p.anchors.k = model.config.k;
+  p.anchors.feature_dim = model.config.feature_dim;
+  p.anchors.positions = model.positions.data();
+  p.anchors.offsets = model.offsets.data();
+  p.anchors.log_scales = model.log_scales.data();
+  p.anchors.features = model.features.data();
+  p.image_raw = paper ? model.image_raw.data() : nullptr;
+  p.image_feature_dim = paper ? model.config.image_feature_dim : 0;
+  for (int i = 0; i < kMlpCount; ++i) {
+    p.mlp[i] = model.mlps[i].params.empty() ? nullptr : model.mlps[i].params.data();
+    p.shapes[i] = model.mlps[i].shape;
+  }
+  return p;
+}
+
+class FloatBackend {
+ public:
+  static constexpr int kChunks = 8;        // fixed MLP row partition (thread-count independent)
+  static constexpr int kMinChunkRows = 64;
+
+  // max_mlp_params: the largest MLP's parameter count (per-chunk gradient buffers).
+  void init(Renderer* renderer, const simd::KernelTable* kernels, platform::ThreadPool* pool, size_t max_mlp_params,
+            int max_width) {
+    renderer_ = renderer;
+    kt_ = kernels;
+    pool_ = pool;
+    loss_params_ = simd::make_loss_params();
+    loss_scratch_.assign(simd::loss_scratch_floats(max_width, 1), 0.0f);
+    chunk_grads_.assign(size_t(kChunks) * max_mlp_params, 0.0f);
+    max_mlp_params_ = max_mlp_params;
+  }
+
+  void mlp_fwd(const simd::MlpShape& s, int32_t batch, const float* x, const float* p, float* hidden, float* y) {
+    for (int id = 0; id < kMlpCount; ++id)
+      if (int8_ && int8_->mlps[id].present && p == int8_keys_[id]) return mlp_fwd_int8(int8_->mlps[id], batch, x, y);
+    const int chunks = chunk_count(batch);
+    auto body = [&](size_t b, size_t e, int) {
+      for (size_t c = b; c < e; ++c) {
+        int32_t r0, r1;
+        chunk_rows(batch, chunks, int(c), &r0, &r1);
+        if (r1 > r0)
+          kt_->mlp_fwd(&s, r1 - r0, x + size_t(r0) * size_t(s.in), p, p + Mlp::off_b1(s), p + Mlp::off_W2(s),
+                       p + Mlp::off_b2(s), hidden + size_t(r0) * size_t(s.hidden), y + size_t(r0) * size_t(s.out));
+      }
+    };
+    run(size_t(chunks), body);
+  }
+
+  void mlp_bwd(const simd::MlpShape& s, int32_t batch, const float* x, const float* p, const float* hidden,
+               const float* y, const float* v_y, float* v_x, float* v_p) {
+    const int chunks = chunk_count(batch);
+    const size_t np = Mlp::param_count(s);
+    auto body = [&](size_t b, size_t e, int) {
+      for (size_t c = b; c < e; ++c) {
+        int32_t r0, r1;
+        chunk_rows(batch, chunks, int(c), &r0, &r1);
+        float* g = chunk_grads_.data() + c * max_mlp_params_;
+        std::fill(g, g + np, 0.0f);
+        if (r1 <= r0) continue;
+        kt_->mlp_bwd(&s, r1 - r0, x + size_t(r0) * size_t(s.in), p, p + Mlp::off_b1(s), p + Mlp::off_W2(s),
+                     p + Mlp::off_b2(s), hidden + size_t(r0) * size_t(s.hidden), y + size_t(r0) * size_t(s.out),
+                     v_y + size_t(r0) * size_t(s.out), v_x ? v_x + size_t(r0) * size_t(s.in) : nullptr, g,
+                     g + Mlp::off_b1(s), g + Mlp::off_W2(s), g + Mlp::off_b2(s));
+      }
+    };
+    run(size_t(chunks), body);
+    for (int c = 0; c < chunks; ++c) {  // fixed-order reduction
+      const float* g = chunk_grads_.data() + size_t(c) * max_mlp_params_;
+      for (size_t i = 0; i < np; ++i) v_p[i] += g[i];
+    }
+  }
+
+  Status render_fwd(const Camera& cam, const NeuralGaussians<float>& ng, float* rgb) {
+    return render_params(cam, gaussian_params(ng), rgb);
+  }
+  // The same for any Gaussians with colours (plain Gaussians: gs/model/cloud_decode.h).
+  Status render_params(const Camera& cam, const GaussianParams& gp, float* rgb) {
+    RenderOptions ro;
+#ifdef NDEBUG
+    ro.validate_inputs = false;  // decoded values are finite by construction; debug builds check
+#endif
+    ro.fixed_point = fixed_point_raster;
+    for (int c = 0; c < 3; ++c) ro.background[c] = background[c];
+    Status st = renderer_->forward(cam, gp, ro, rgb);
+    // The tile-intersection count depends on the Gaussians' screen sizes, which training changes;
+    // when a view needs more than planned, re-plan once with 1.5x headroom (a rare allocation, not
+    // a per-step one) instead of failing the run.
+    const uint64_t needed = renderer_->stats().isects;
+    if (st.code() == StatusCode::kCapacityExceeded && needed > renderer_->capacity().max_isects &&
+        needed < (uint64_t(1) << 31)) {
+      RenderCapacity rc = renderer_->capacity();
+      rc.max_isects = size_t(std::min<uint64_t>(needed + needed / 2, (uint64_t(1) << 31) - 1));
+      GS_RETURN_IF_ERROR(renderer_->init(rc, pool_, kt_));
+      ++replans_;
+      st = renderer_->forward(cam, gp, ro, rgb);
+    }
+    return st;
+  }
+  int replans() const { return replans_; }
+
+  // The on-device decode: MLPs whose float parameters are keys[id] run as int8 (qmlp_fwd) with the
+  // scratch planned for `rows` rows; null turns it off. The outputs are the float path's (final
+  // activation applied), so decoding continues unchanged.
+  void set_int8_decoder(const QuantDecoder* qd, const float* const keys[kMlpCount], size_t rows) {
+    int8_ = qd;
+    for (int id = 0; id < kMlpCount; ++id) int8_keys_[id] = keys ? keys[id] : nullptr;
+    if (qd) {
+      q_x_.assign(rows * size_t(qd->max_in), 0);
+      q_h_.assign(rows * size_t(qd->max_hidden), 0);
+      q_y_.assign(rows * size_t(qd->max_out), 0);
+    }
+  }
+  void set_int8_keys(const float* const keys[kMlpCount]) {
+    for (int id = 0; id < kMlpCount; ++id) int8_keys_[id] = keys[id];
+  }
+  // render_fwd blends with the fixed-point tile kernel (RenderOptions::fixed_point): the on-device
+  // render path; training never sets it.
+  bool fixed_point_raster = false;
+  // The colour behind the Gaussians (gs/model/background.h); a training step may change it.
+  float background[3] = {0, 0, 0};
+
+  Status render_bwd(const float* v_rgb, float* v_means, float* v_log_scales, float* v_quats, float* v_opacities,
+                    float* v_colors, float* v_means2d, double* v_pose) {
+    GaussianGrads g = colored_gaussian_grads(v_means, v_log_scales, v_quats, v_opacities, v_colors, v_means2d);
+    GS_RETURN_IF_ERROR(renderer_->backward(v_rgb, &g));
+    for (int i = 0; i < 6; ++i) v_pose[i] += g.v_pose[i];
+    return Status::Ok();
+  }
+
+  void loss_bwd(int W, int H, const float* image, const float* target, float* v_image, double* l1, double* ssim) {
+    kt_->loss_bwd(&loss_params_, W, H, image, target, 1.0, loss_scratch_.data(), v_image, l1, ssim);
+  }
+
+  void loss_fwd(int W, int H, const float* image, const float* target, double* l1, double* ssim) {
+    kt_->loss_fwd(&loss_params_, W, H, image, target, loss_scratch_.data(), l1, ssim);
+  }
+
+ private:
+  static int chunk_count(int32_t batch) { return std::max(1, std::min(kChunks, int(batch / kMinChunkRows))); }
+  static void chunk_rows(int32_t batch, int chunks, int c, int32_t* r0, int32_t* r1) {
+    *r0 = int32_t(int64_t(batch) * c / chunks);
+    *r1 = int32_t(int64_t(batch) * (c + 1) / chunks);
+  }
+  template <class F>
+  void run(size_t n, F& body) {
+    if (pool_ && n > 1)
+      pool_->parallel_for(n, 1, body);
+    else
+      body(0, n, 0);
+  }
+
+  void mlp_fwd_int8(const QuantMlpKernel& k, int32_t batch, const float* x, float* y) {
+    const int chunks = chunk_count(batch);
+    const simd::QMlpParams qp = k.params();
+    const size_t I = size_t(k.in), H = size_t(k.hidden), O = size_t(k.out);
+    auto body = [&](size_t b, size_t e, int) {
+      for (size_t c = b; c < e; ++c) {
+        int32_t r0, r1;
+        chunk_rows(batch, chunks, int(c), &r0, &r1);
+        if (r1 <= r0) continue;
+        int16_t* xq = q_x_.data() + size_t(r0) * I;
+        const float* xr = x + size_t(r0) * I;
+        for (size_t i = 0; i < size_t(r1 - r0) * I; ++i) {
+          const float v = std::nearbyint(xr[i] * k.in_inv_scale);
+          xq[i] = int16_t(v > 32767.0f ? 32767 : (v < -32767.0f ? -32767 : int(v)));
+        }
+        int16_t* yq = q_y_.data() + size_t(r0) * O;
+        kt_->qmlp_fwd(&qp, r1 - r0, xq, q_h_.data() + size_t(r0) * H, yq);
+        float* yr = y + size_t(r0) * O;
+        for (size_t i = 0; i < size_t(r1 - r0) * O; ++i) yr[i] = simd::mlp_act2<float>(k.act2, float(yq[i]) * k.out_scale);
+      }
+    };
+    run(size_t(chunks), body);
+  }
+
+  Renderer* renderer_ = nullptr;
+  const simd::KernelTable* kt_ = nullptr;
+  platform::ThreadPool* pool_ = nullptr;
+  simd::LossParams loss_params_{};
+  std::vector<float> loss_scratch_;
+  std::vector<float> chunk_grads_;
+  size_t max_mlp_params_ = 0;
+  int replans_ = 0;
+  const QuantDecoder* int8_ = nullptr;
+  const float* int8_keys_[kMlpCount] = {};
+  std::vector<int16_t> q_x_, q_h_, q_y_;
+};
+
+// Tile pairs planned per Gaussian of capacity where the renderer is used through
+// FloatBackend::render_params (it re-plans with 1.5x headroom when a view needs more): the trainer
+// and ModelRenderer. Training snowmiku_plush at 393 px used at most 1.5 (130k pairs for 88k
+// Gaussians of capacity); 8 cost 85 MB of arena per renderer for nothing.
+constexpr size_t kReplannedIsectsPerGaussian = 3;
+
+// Plans what rendering a model takes, for `rows` anchor rows and images up to max_width x
+// max_height: the renderer (k Gaussians per row, isects_per_gaussian tile pairs each: callers that
+// render through FloatBackend::render_params, which re-plans with headroom when a view needs more,
+// plan for what views use (training snowmiku_plush: at most 1.5 per row x k); callers that cannot
+// re-plan keep 8), the float
+// backend and a step workspace whose image buffers are ws_width x ws_height. Returns the renderer's
+// capacity (for the byte count).
+inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, size_t rows, int max_width, int max_height,
+                                                    int ws_width, int ws_height, platform::ThreadPool* pool,
+                                                    const simd::KernelTable* kernels, Renderer* renderer,
+                                                    FloatBackend* backend, StepWorkspace<float>* ws,
+                                                    bool training = true, size_t isects_per_gaussian = 8) {
+  const size_t K = size_t(model.config.k);
+  RenderCapacity rc;
+  rc.max_gaussians = rows * K;
+  rc.max_isects = rows * K * isects_per_gaussian;
+  rc.max_width = max_width;
+  rc.max_height = max_height;
+  rc.max_sh_degree = 0;
+  GS_RETURN_IF_ERROR(renderer->init(rc, pool, kernels));
+  size_t max_params = 0;
+  for (const Mlp& m : model.mlps) max_params = std::max(max_params, m.params.size());
+  backend->init(renderer, kernels, pool, max_params, max_width);
+  const ModelParamsT<float> p = model_params(model);
+  ws->reserve(rows, model.config.k, p.shapes, p.image_feature_dim, ws_width, ws_height, training);
+  return rc;
+}
+
+}  // namespace gs::model::detail

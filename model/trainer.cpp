@@ -1,0 +1,437 @@
+// SPDX-License-Identifier: MIT
+// The training loop (see gs/model/trainer.h): view sampling, learning-rate schedules, dense Adam
+// per parameter group, joint pose steps and registration passes, image-feature refresh, and
+// Trainer::step; the state is Trainer::Impl (trainer_state.h), anchor growing and pruning are in
+// trainer_anchors.cpp, the checkpoint file in checkpoint.cpp.
+#include "gs/model/trainer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "gs/io/composite.h"
+#include "gs/metrics/image_metrics.h"
+#include "gs/optim/adam.h"
+#include "gs/optim/schedule.h"
+#include "gs/platform/clock.h"
+#include "gs/platform/thread_pool.h"
+#include "gs/pose/pose.h"
+#include "trainer_state.h"
+
+namespace gs::model {
+
+float cameras_extent(const std::vector<const Camera*>& cameras) {
+  if (cameras.empty()) return 1.0f;
+  std::vector<double> centres(cameras.size() * 3);
+  double mean[3] = {0, 0, 0};
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    camera_centre(cameras[i]->pose, &centres[3 * i]);
+    for (int c = 0; c < 3; ++c) mean[c] += centres[3 * i + c] / double(cameras.size());
+  }
+  double radius = 0;
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    double d2 = 0;
+    for (int c = 0; c < 3; ++c) d2 += (centres[3 * i + c] - mean[c]) * (centres[3 * i + c] - mean[c]);
+    radius = std::max(radius, std::sqrt(d2));
+  }
+  return float(1.1 * (radius > 0 ? radius : 1.0));
+}
+
+// ---- Trainer ----------------------------------------------------------------------------------
+
+bool Trainer::Impl::gradients_finite(size_t M, const double v_pose[6]) const {
+  for (const detail::ParamGroup& g : groups) {
+    const size_t n = g.live(M);
+    const float* p = g.grad.data();
+    uint32_t bad = 0;
+    for (size_t i = 0; i < n; ++i) {
+      uint32_t bits;
+      std::memcpy(&bits, p + i, 4);
+      bad |= uint32_t((bits & 0x7f800000u) == 0x7f800000u);
+    }
+    if (bad) return false;
+  }
+  for (int i = 0; i < 6; ++i)
+    if (!std::isfinite(v_pose[i])) return false;
+  return true;
+}
+
+Status Trainer::Impl::plan(const TrainOptions& options) {
+  const size_t c = cap(), K = size_t(k());
+  Expected<RenderCapacity> rc = detail::plan_model_pipeline(model, c, plan_w, plan_h, plan_w, plan_h, pool, kernels,
+                                                            &renderer, &backend, &ws, /*training=*/true,
+                                                            detail::kReplannedIsectsPerGaussian);
+  if (!rc.ok()) return rc.status();
+  opacity_accum.resize(c, 0.0f);
+  anchor_seen.resize(c, 0);
+  grad_accum.resize(c * K, 0.0f);
+  grad_denom.resize(c * K, 0);
+  existing_cells.resize(c, detail::CellKey{0, 0, 0});
+  cand.resize(c * K, {detail::CellKey{0, 0, 0}, 0u});
+  pruned.resize(c, 0);
+  uint64_t bytes = Renderer::plan_bytes(*rc);
+  registrar.reset();
+  // A run that may hold views back keeps its registrar even once none is held (a resumed run
+  // learns which views are held from its checkpoint, after this plan).
+  if (options.pose_register_every > 0 || options.held_back_register_every > 0) {
+    pose::RegisterOptions ro;
+    ro.max_iterations_per_level = 10;
+    for (int ch = 0; ch < 3; ++ch) ro.background[ch] = opt.background.rgb[ch];
+    Expected<std::unique_ptr<pose::Registrar>> reg = pose::Registrar::create(model, plan_w, plan_h, ro, pool, kernels, c);
+    if (!reg.ok()) return reg.status();
+    registrar = std::move(reg).value();
+    bytes += registrar->planned_bytes();
+  }
+  bytes += uint64_t(model.positions.size() + model.offsets.size() + model.log_scales.size() + model.features.size() +
+                    model.image_raw.size()) * 4;
+  for (const detail::ParamGroup& g : groups) bytes += uint64_t(g.grad.size() * 3) * 4;
+  bytes += uint64_t(ws.X.size() * 3 + ws.means.size() * 4 + ws.quats.size() * 2 + ws.rgb.size() * 2) * 4;
+  bytes += uint64_t(c * K) * (4 + 4 + sizeof(cand[0]));
+  planned_bytes = bytes;
+  return Status::Ok();
+}
+
+Status Trainer::Impl::ensure_capacity(size_t rows) {
+  if (rows <= cap()) return Status::Ok();
+  const size_t c = std::min(budget(), std::max(rows, cap() + cap() / 2));
+  const ModelConfig& mc = model.config;
+  model.positions.resize(c * 3, 0.0f);
+  model.offsets.resize(c * size_t(mc.k) * 3, 0.0f);
+  model.log_scales.resize(c * 6, 0.0f);
+  model.features.resize(c * size_t(mc.feature_dim), 0.0f);
+  if (paper()) model.image_raw.resize(c * size_t(kImageRawDim), 0.0f);
+  float* const anchor_params[3] = {model.offsets.data(), model.log_scales.data(), model.features.data()};
+  for (size_t gi = 0; gi < groups.size(); ++gi) {
+    detail::ParamGroup& g = groups[gi];
+    if (!g.row_floats) continue;
+    g.param = anchor_params[gi];  // the anchor groups come first, in this order (build_groups)
+    g.grad.resize(g.row_floats * c, 0.0f);
+    g.m.resize(g.row_floats * c, 0.0f);
+    g.v.resize(g.row_floats * c, 0.0f);
+  }
+  ++growths;
+  return plan(opt);
+}
+
+void Trainer::Impl::refresh_image_features() {
+  bank.set_occluders(model.positions.data(), model.anchor_count, model.voxel_size, pool);
+  bank.compute(model.positions.data(), model.anchor_count, model.image_raw.data(), pool);
+}
+
+void Trainer::Impl::build_groups() {
+  const ModelConfig& c = model.config;
+  const double E = model.scene_extent;
+  groups.clear();
+  auto anchor_group = [&](const char* name, std::vector<float>& v, size_t row, double lr0, double lr1) {
+    detail::ParamGroup g;
+    g.name = name;
+    g.param = v.data();
+    g.row_floats = row;
+    g.lr0 = lr0;
+    g.lr1 = lr1;
+    groups.push_back(std::move(g));
+  };
+  anchor_group("offsets", model.offsets, size_t(c.k) * 3, opt.lr_offset_init * E, opt.lr_offset_final * E);
+  anchor_group("scaling", model.log_scales, 6, opt.lr_scaling, opt.lr_scaling);
+  anchor_group("features", model.features, size_t(c.feature_dim), opt.lr_feature, opt.lr_feature);
+  const double lrs[kMlpCount][2] = {{opt.lr_mlp_opacity_init, opt.lr_mlp_opacity_final},
+                                    {opt.lr_mlp_cov_init, opt.lr_mlp_cov_final},
+                                    {opt.lr_mlp_color_init, opt.lr_mlp_color_final},
+                                    {opt.lr_mlp_image_init, opt.lr_mlp_image_final}};
+  static const char* names[kMlpCount] = {"mlp_opacity", "mlp_cov", "mlp_color", "mlp_image"};
+  for (int i = 0; i < kMlpCount; ++i) {
+    if (model.mlps[i].params.empty()) continue;
+    detail::ParamGroup g;
+    g.name = names[i];
+    g.param = model.mlps[i].params.data();
+    g.fixed_size = model.mlps[i].params.size();
+    g.lr0 = lrs[i][0];
+    g.lr1 = lrs[i][1];
+    groups.push_back(std::move(g));
+  }
+  for (detail::ParamGroup& g : groups) {
+    const size_t n = g.row_floats ? g.row_floats * cap() : g.fixed_size;
+    g.grad.assign(n, 0.0f);
+    g.m.assign(n, 0.0f);
+    g.v.assign(n, 0.0f);
+  }
+}
+
+ModelGradsT<float> Trainer::Impl::grads() {
+  ModelGradsT<float> g;
+  g.offsets = groups[0].grad.data();
+  g.log_scales = groups[1].grad.data();
+  g.features = groups[2].grad.data();
+  size_t gi = 3;
+  for (int i = 0; i < kMlpCount; ++i) g.mlp[i] = model.mlps[i].params.empty() ? nullptr : groups[gi++].grad.data();
+  return g;
+}
+
+int Trainer::Impl::next_view() {
+  for (;;) {
+    if (view_pos >= view_order.size()) {  // new epoch: Fisher-Yates with the run's generator
+      for (size_t i = 0; i < view_order.size(); ++i) view_order[i] = int32_t(i);
+      for (size_t i = view_order.size(); i > 1; --i) std::swap(view_order[i - 1], view_order[rng.next() % i]);
+      view_pos = 0;
+    }
+    const int v = view_order[view_pos++];
+    if (!held[size_t(v)]) return v;
+  }
+}
+
+void Trainer::Impl::adopt_pose(size_t v, const Pose& pose) {
+  view_cameras[v].pose = pose;
+  std::fill(pose_m.begin() + std::ptrdiff_t(6 * v), pose_m.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
+  std::fill(pose_v.begin() + std::ptrdiff_t(6 * v), pose_v.begin() + std::ptrdiff_t(6 * v + 6), 0.0);
+  pose_steps[v] = 0;
+}
+
+Status Trainer::Impl::register_held(int it, int* released) {
+  *released = 0;
+  registrar->mutable_options().finest_downscale = std::max(2, downscale_at(it));
+  for (size_t v = 0; v < views.size(); ++v) {
+    if (!held[v]) continue;
+    pose::RegisterResult r;
+    GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
+    if (!r.converged()) continue;
+    adopt_pose(v, r.pose);
+    held[v] = 0;
+    ++*released;
+  }
+  return Status::Ok();
+}
+
+void Trainer::Impl::load_target(const io::DatasetView& v, int s, const float bg[3]) {
+  io::composite_target(v.image, v.mask, s, bg, target.data());
+}
+
+int Trainer::Impl::downscale_at(int it) const {
+  if (opt.coarse_levels <= 0) return 1;
+  const double coarse_end = opt.coarse_fraction * double(opt.iterations);
+  if (double(it) > coarse_end) return 1;
+  const int level = std::min(opt.coarse_levels - 1, int(double(it - 1) * opt.coarse_levels / std::max(coarse_end, 1.0)));
+  return 1 << (opt.coarse_levels - level);
+}
+
+Status Trainer::Impl::register_all(int it, int* moved) {
+  *moved = 0;
+  // Registration at no finer than half resolution: a pass is for large errors (the joint Adam
+  // steps refine at full resolution), and its cost grows with the pixel count.
+  registrar->mutable_options().finest_downscale = std::max(2, downscale_at(it));
+  for (size_t v = 0; v < views.size(); ++v) {
+    pose::RegisterResult r;
+    GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
+    if (!(r.final_rmse < r.initial_rmse) || r.verdict == pose::RegisterVerdict::kDiverged || r.verdict == pose::RegisterVerdict::kNothingVisible)
+      continue;
+    adopt_pose(v, r.pose);
+    ++*moved;
+  }
+  return Status::Ok();
+}
+
+void Trainer::Impl::pose_adam(size_t vi, const double g[6], int it) {
+  const double warm = optim::warmup(opt.pose_warmup, it);
+  const double lr_rot = warm * optim::expon_lr(opt.lr_pose_rotation_init, opt.lr_pose_rotation_final, opt.schedule_iterations, it);
+  const double lr_tr = warm * model.scene_extent *
+                       optim::expon_lr(opt.lr_pose_translation_init, opt.lr_pose_translation_final, opt.schedule_iterations, it);
+  const int step = ++pose_steps[vi];
+  double xi[6];
+  optim::twist_adam_step(g, lr_tr, lr_rot, step, opt.adam_eps, &pose_m[6 * vi], &pose_v[6 * vi], xi);
+  pose::apply_left_twist(xi, &view_cameras[vi].pose);
+}
+
+void Trainer::Impl::adam_all(int it) {
+  const size_t M = model.anchor_count;
+  for (detail::ParamGroup& g : groups) {
+    const simd::AdamParams ap = optim::adam_params(optim::expon_lr(g.lr0, g.lr1, opt.schedule_iterations, it), it, opt.adam_eps);
+    optim::adam_step(*kernels, pool, ap, g.live(M), g.param, g.grad.data(), g.m.data(), g.v.data());
+  }
+}
+
+
+Trainer::Trainer() : impl_(new Impl) {}
+Trainer::~Trainer() = default;
+
+Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std::vector<const io::DatasetView*>& train_views,
+                                                   const TrainOptions& options, platform::ThreadPool* pool,
+                                                   const simd::KernelTable* kernels) {
+  if (train_views.empty()) return invalid_argument("trainer: no training views");
+  GS_RETURN_IF_ERROR(model.config.validate());
+  if (model.anchor_count == 0) return invalid_argument("trainer: the model has no anchors");
+  if (model.anchor_count > model.capacity()) return invalid_argument("trainer: the model holds more anchors than its capacity");
+  if (options.iterations < 0 || options.schedule_iterations < 1 || options.update_interval < 1 || options.update_depth < 0 ||
+      options.update_hierarchy_factor < 1 || options.update_init_factor < 1)
+    return invalid_argument("trainer: iteration counts and densification intervals must be positive");
+  if (options.max_nonfinite_in_a_row < 1) return invalid_argument("trainer: max_nonfinite_in_a_row must be at least 1");
+  if (!options.held_back_views.empty()) {
+    if (options.held_back_views.size() != train_views.size())
+      return invalid_argument("trainer: held_back_views has " + std::to_string(options.held_back_views.size()) + " entries for " +
+                              std::to_string(train_views.size()) + " training views");
+    if (std::find(options.held_back_views.begin(), options.held_back_views.end(), uint8_t(0)) == options.held_back_views.end())
+      return invalid_argument("trainer: every training view is held back; nothing would train");
+    if (options.held_back_register_every < 0) return invalid_argument("trainer: held_back_register_every must not be negative");
+  }
+  if (options.coarse_levels < 0 || options.coarse_levels > 4 || !(options.coarse_fraction >= 0 && options.coarse_fraction <= 1))
+    return invalid_argument("trainer: coarse_levels must be 0-4 and coarse_fraction in [0, 1]");
+  if (!(options.lr_pose_rotation_init >= 0) || !(options.lr_pose_rotation_final > 0) || !(options.lr_pose_translation_init >= 0) ||
+      !(options.lr_pose_translation_final > 0) || options.pose_warmup < 0)
+    return invalid_argument("trainer: pose learning rates must be positive and the warm-up non-negative");
+  std::unique_ptr<Trainer> t(new Trainer());
+  Impl& d = *t->impl_;
+  d.model = std::move(model);
+  d.opt = options;
+  d.views = train_views;
+  d.pool = pool;
+  d.kernels = kernels ? kernels : &simd::best_kernel_table();
+  int max_w = 1, max_h = 1;
+  std::vector<const io::Image8*> images;
+  for (size_t i = 0; i < train_views.size(); ++i) {
+    const io::DatasetView& v = *train_views[i];
+    GS_RETURN_IF_ERROR(validate_camera(v.camera));
+    if (v.image.channels != 3 || v.image.width != v.camera.intr.width || v.image.height != v.camera.intr.height)
+      return invalid_argument("trainer: view '" + v.name + "' has a " + std::to_string(v.image.width) + "x" +
+                              std::to_string(v.image.height) + " image with " + std::to_string(v.image.channels) +
+                              " channels, but its camera is " + std::to_string(v.camera.intr.width) + "x" +
+                              std::to_string(v.camera.intr.height) + " RGB");
+    if (!v.mask.empty() && (v.mask.channels != 1 || v.mask.width != v.image.width || v.mask.height != v.image.height))
+      return invalid_argument("trainer: view '" + v.name + "' has a mask that is not one channel of its image's size");
+    d.view_cameras.push_back(v.camera);
+    d.composited.push_back(v.mask.empty() ? io::Image8{} : io::composite_rgb8(v.image, v.mask, options.background.rgb));
+    max_w = std::max(max_w, v.camera.intr.width);
+    max_h = std::max(max_h, v.camera.intr.height);
+  }
+  for (const Camera& c : d.view_cameras) d.cameras.push_back(&c);
+  for (size_t i = 0; i < train_views.size(); ++i) images.push_back(&d.photo(i));
+  d.pose_m.assign(6 * train_views.size(), 0.0);
+  d.pose_v.assign(6 * train_views.size(), 0.0);
+  d.pose_steps.assign(train_views.size(), 0);
+  if (d.paper()) GS_RETURN_IF_ERROR(d.bank.init(d.cameras, images, d.model.config.image_features));
+  d.plan_w = max_w;
+  d.plan_h = max_h;
+  d.target.assign(size_t(max_w) * size_t(max_h) * 3, 0.0f);
+  d.build_groups();
+  d.rng.state = options.seed * 0x9E3779B97F4A7C15ull + 7;
+  d.view_order.assign(train_views.size(), 0);
+  d.view_pos = d.view_order.size();  // first call shuffles
+  d.held = options.held_back_views.empty() ? std::vector<uint8_t>(train_views.size(), 0) : options.held_back_views;
+  for (uint8_t& h : d.held) h = h ? 1 : 0;
+  GS_RETURN_IF_ERROR(d.plan(options));
+  if (d.paper()) d.refresh_image_features();
+  return t;
+}
+
+Status Trainer::step(IterationStats* stats) {
+  Impl& d = *impl_;
+  const double t0 = platform::now_seconds();
+  const int it = d.iteration + 1;
+  const int vi = d.next_view();
+  const io::DatasetView& view = *d.views[size_t(vi)];
+  const int scale = d.downscale_at(it);
+  const Camera cam = scaled_camera(d.view_cameras[size_t(vi)], scale);
+  float bg[3] = {d.opt.background.rgb[0], d.opt.background.rgb[1], d.opt.background.rgb[2]};
+  if (d.opt.background.random)
+    for (float& c : bg) c = float(d.rng.next() >> 40) * (1.0f / 16777216.0f);  // 24 bits, [0, 1)
+  for (int c = 0; c < 3; ++c) d.backend.background[c] = bg[c];
+  d.load_target(view, scale, bg);
+  const size_t M = d.model.anchor_count;
+  for (detail::ParamGroup& g : d.groups) std::fill(g.grad.begin(), g.grad.begin() + std::ptrdiff_t(g.live(M)), 0.0f);
+  ModelParamsT<float> p = d.params();
+  ModelGradsT<float> grads = d.grads();
+  double v_pose[6] = {0, 0, 0, 0, 0, 0};
+  if (d.opt.optimize_poses) grads.pose = v_pose;
+  StepResult res;
+  GS_RETURN_IF_ERROR(step_forward_backward(d.backend, p, cam, d.target.data(), d.opt.step, d.ws, &grads, &res));
+  d.last_visible = res.visible_anchors;
+  if (!d.opt.test_nonfinite_iterations.empty() &&
+      std::find(d.opt.test_nonfinite_iterations.begin(), d.opt.test_nonfinite_iterations.end(), it) != d.opt.test_nonfinite_iterations.end())
+    d.groups.front().grad[0] = std::numeric_limits<float>::quiet_NaN();
+  // The numerical guard: one bad step must not write NaN into every parameter through Adam.
+  const bool finite = std::isfinite(res.loss) && d.gradients_finite(M, v_pose);
+  if (finite) {
+    d.nonfinite_in_a_row = 0;
+    if (it > d.opt.stat_start && it < d.opt.update_until) d.accumulate_stats(cam);
+    d.adam_all(it);
+    if (d.opt.optimize_poses) d.pose_adam(size_t(vi), v_pose, it);
+  } else {
+    if (d.nonfinite_in_a_row == 0) d.first_nonfinite = it;
+    ++d.nonfinite_steps;
+    if (++d.nonfinite_in_a_row >= d.opt.max_nonfinite_in_a_row)
+      return numerical_error("training diverged: the loss or gradients were NaN or infinite in " +
+                             std::to_string(d.nonfinite_in_a_row) + " steps in a row (iterations " +
+                             std::to_string(d.first_nonfinite) + "-" + std::to_string(it) + ", " +
+                             std::to_string(d.nonfinite_steps) + " such steps in all); those steps were skipped, so the "
+                             "last checkpoint holds no NaN. Lower the learning rates or check the input poses and images");
+  }
+  bool adjusted = false;
+  if (it > d.opt.update_from && it % d.opt.update_interval == 0 && it < d.opt.update_until) {
+    d.adjust_anchors();
+    if (!d.growth_status.ok()) return d.growth_status;
+    adjusted = true;
+  }
+  bool refresh = d.paper() && d.opt.image_feature_refresh > 0 && it % d.opt.image_feature_refresh == 0;
+  int moved = -1;
+  if (d.registrar && d.opt.pose_register_every > 0 && it % d.opt.pose_register_every == 0 && it <= d.opt.pose_register_until) {
+    GS_RETURN_IF_ERROR(d.register_all(it, &moved));
+    refresh = refresh || (d.paper() && moved > 0);
+  }
+  int released = -1;
+  if (d.registrar && d.opt.held_back_register_every > 0 && it % d.opt.held_back_register_every == 0 &&
+      it >= d.opt.held_back_register_from && it <= d.opt.held_back_register_until && d.held_count() > 0) {
+    GS_RETURN_IF_ERROR(d.register_held(it, &released));
+    refresh = refresh || (d.paper() && released > 0);
+  }
+  if (refresh) d.refresh_image_features();
+  d.iteration = it;
+  if (stats) {
+    stats->iteration = it;
+    stats->view = vi;
+    stats->step = res;
+    stats->downscale = scale;
+    stats->poses_registered = moved;
+    stats->views_released = released;
+    stats->views_held_back = d.held_count();
+    stats->psnr = metrics::psnr_f32(d.ws.rgb.data(), d.target.data(), cam.intr.width, cam.intr.height);
+    stats->anchors = d.model.anchor_count;
+    stats->isects = d.renderer.stats().isects;
+    stats->adjusted = adjusted;
+    stats->seconds = platform::now_seconds() - t0;
+    stats->skipped_nonfinite = !finite;
+    stats->nonfinite_steps = d.nonfinite_steps;
+  }
+  return Status::Ok();
+}
+
+int Trainer::iteration() const { return impl_->iteration; }
+const std::vector<Camera>& Trainer::cameras() const { return impl_->view_cameras; }
+const std::vector<uint8_t>& Trainer::held_back() const { return impl_->held; }
+int Trainer::downscale_at(int iteration) const { return impl_->downscale_at(iteration); }
+const HybridModel& Trainer::model() const { return impl_->model; }
+const TrainOptions& Trainer::options() const { return impl_->opt; }
+uint64_t Trainer::planned_bytes() const { return impl_->planned_bytes; }
+
+bool Trainer::can_render(int width, int height) const {
+  return width >= 1 && height >= 1 && size_t(width) * size_t(height) * 3 <= impl_->ws.rgb.size() &&
+         width <= impl_->renderer.capacity().max_width && height <= impl_->renderer.capacity().max_height;
+}
+
+Status Trainer::render(const Camera& camera, const float background[3], float* rgb, size_t* gaussians, float* alpha) {
+  Impl& d = *impl_;
+  GS_RETURN_IF_ERROR(validate_camera(camera));
+  if (!can_render(camera.intr.width, camera.intr.height))
+    return capacity_exceeded("trainer: a " + std::to_string(camera.intr.width) + "x" + std::to_string(camera.intr.height) +
+                             " render is larger than the training views");
+  for (int c = 0; c < 3; ++c) d.backend.background[c] = background[c];  // step() sets its own again
+  size_t V = 0;
+  const size_t n = decode_view(d.backend, d.params(), camera, d.ws, &V);
+  if (gaussians) *gaussians = n;
+  GS_RETURN_IF_ERROR(d.backend.render_fwd(camera, d.ws.ng, rgb));
+  if (alpha) {
+    const size_t px = size_t(camera.intr.width) * size_t(camera.intr.height);
+    const float* T = d.renderer.final_transmittance();
+    for (size_t i = 0; i < px; ++i) alpha[i] = 1.0f - T[i];
+  }
+  return Status::Ok();
+}
+
+}  // namespace gs::model
