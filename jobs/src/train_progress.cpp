@@ -29,7 +29,10 @@ Status save_progress_to(const std::string& path, const Progress& p) {
   j["train_seconds"] = p.train_seconds;
   j["train_cpu_seconds"] = p.train_cpu_seconds;
   nlohmann::json rows = nlohmann::json::array();
-  for (const PsnrRow& r : p.rows) rows.push_back({r.iteration, r.seconds, std::isfinite(r.psnr) ? r.psnr : 0.0});
+  // A non-finite PSNR (+inf: a render identical to its images) is null, as in every hbgs JSON; read
+  // back as NaN, which the plot leaves out (it was written as 0 dB before).
+  for (const PsnrRow& r : p.rows)
+    rows.push_back({r.iteration, r.seconds, std::isfinite(r.psnr) ? nlohmann::json(r.psnr) : nlohmann::json(nullptr)});
   j["psnr_rows"] = std::move(rows);
   j["iteration_ms"] = p.iteration_ms;
   j["losses"] = p.losses;
@@ -50,7 +53,8 @@ Progress load_progress(const std::string& run, int at, const std::function<void(
   p.train_seconds = j.value("train_seconds", 0.0);
   p.train_cpu_seconds = j.value("train_cpu_seconds", 0.0);
   for (const auto& r : j.value("psnr_rows", nlohmann::json::array()))
-    if (r.is_array() && r.size() == 3 && r[0].get<int>() <= at) p.rows.push_back({r[0].get<int>(), r[1].get<double>(), r[2].get<double>()});
+    if (r.is_array() && r.size() == 3 && r[0].get<int>() <= at)
+      p.rows.push_back({r[0].get<int>(), r[1].get<double>(), r[2].is_number() ? r[2].get<double>() : std::nan("")});
   p.iteration_ms = j.value("iteration_ms", std::vector<float>());
   if (p.iteration_ms.size() > size_t(at)) p.iteration_ms.resize(size_t(at));
   p.losses = j.value("losses", std::vector<float>());

@@ -1,15 +1,23 @@
 // SPDX-License-Identifier: MIT
-// The one SVG plotter (gs/jobs/svg_plot.h) and the run's PSNR-vs-time plot drawn with it: the
-// output is well-formed XML whatever the names hold (a dataset called "Fish & Chips <2>" gave
-// invalid SVG before), non-finite points are left out, and the axes fit their data.
+// The one SVG plotter (gs/jobs/svg_plot.h) and the run's PSNR-vs-time files: the plot is
+// well-formed XML whatever the names hold (a dataset called "Fish & Chips <2>" gave invalid SVG
+// before), non-finite points are left out, the axes fit their data, and a non-finite PSNR goes
+// through progress.json as null (it was written as 0 dB).
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <limits>
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include "../../jobs/src/psnr_plot.h"
+#include "../../jobs/src/train_progress.h"
+#include "gs/jobs/run_folder.h"
 #include "gs/jobs/svg_plot.h"
 
 namespace gs::jobs {
@@ -92,6 +100,26 @@ TEST_CASE("psnr plot: rows without a finite PSNR are left out, not drawn at NaN"
       CHECK(svg.find(around) == std::string::npos);
   // No rows at all: still a valid, empty plot.
   CHECK(xml_problem(psnr_svg({}, "empty")) == "");
+}
+
+TEST_CASE("progress.json: a non-finite PSNR is written as null and read back as not a number") {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("hbgs_test_progress_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  Progress p;
+  p.iteration = 300;
+  p.rows = {{100, 1.5, 21.25}, {200, 3.0, std::numeric_limits<double>::infinity()}, {300, 4.5, 23.5}};
+  REQUIRE(save_progress_to((dir / kProgressFile).string(), p).ok());
+  std::ifstream in(dir / kProgressFile);
+  std::stringstream text;
+  text << in.rdbuf();
+  CHECK(text.str().find("[200,3.0,null]") != std::string::npos);
+  const Progress back = load_progress(dir.string(), 300, [](const std::string&) {});
+  REQUIRE(back.rows.size() == 3);
+  CHECK(back.rows[0].psnr == 21.25);
+  CHECK(std::isnan(back.rows[1].psnr));
+  CHECK(back.rows[2].psnr == 23.5);
+  fs::remove_all(dir);
 }
 
 TEST_CASE("svg plot: legend and labels escaped, axes fit the data") {

@@ -157,8 +157,9 @@ TEST_CASE("register: Adam reduces a 3 degree error and keeps the best pose" * GS
   CHECK(r.final_rmse <= r.initial_rmse);
 }
 
-// After one warm-up registration, a second one from another start allocates nothing.
-void check_allocation_free(const pose::RegisterOptions& opt, platform::ThreadPool* pool) {
+// After one warm-up registration, a second one from another start (6 deg) allocates nothing;
+// returns that second result.
+pose::RegisterResult check_allocation_free(const pose::RegisterOptions& opt, platform::ThreadPool* pool) {
   const Fixture& f = fixture();
   auto reg = pose::Registrar::create(f.model, kW, kH, opt, pool);
   REQUIRE(reg.ok());
@@ -168,6 +169,7 @@ void check_allocation_free(const pose::RegisterOptions& opt, platform::ThreadPoo
   REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(6, 0.04, 12), &r).ok());
   CHECK(scope.count() == 0);
   CHECK(r.iterations > 0);
+  return r;
 }
 
 TEST_CASE("register: the registration loop allocates nothing after set-up") {
@@ -199,16 +201,7 @@ TEST_CASE("register: the fixed-point mode allocates nothing after set-up and rec
   platform::ThreadPool pool(2);
   pose::RegisterOptions opt;
   opt.fixed_point = true;
-  auto reg = pose::Registrar::create(f.model, kW, kH, opt, &pool);
-  REQUIRE(reg.ok());
-  pose::RegisterResult r;
-  REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(4, 0.03, 11), &r).ok());  // warm-up
-  {
-    test::AllocationScope scope;
-    REQUIRE((*reg)->register_view(f.image.data(), f.truth.intr, f.perturbed(6, 0.04, 12), &r).ok());
-    CHECK(scope.count() == 0);
-  }
-  CHECK(r.iterations > 0);
+  const pose::RegisterResult r = check_allocation_free(opt, &pool);
   const double rot = pose::rotation_error_deg(r.pose, f.truth.pose);
   MESSAGE("fixed-point registration from 6 deg: " << rot << " deg, verdict " << std::string(pose::verdict_name(r.verdict)));
   CHECK(rot < 1.0);
