@@ -40,26 +40,23 @@ double mean_of_masked(const std::vector<ViewMetrics>& views, double ViewMetrics:
   return n ? sum / n : -1.0;
 }
 
-// PSNR inside the mask (8-bit render and ground truth, squared errors weighted by coverage), and
-// the render's alpha against the mask (mean absolute difference; IoU of both thresholded at 0.5).
+// PSNR inside the mask (gs::metrics::psnr_u8_masked: squared errors weighted by coverage; -1 when
+// the mask covers nothing), and the render's alpha against the mask (mean absolute difference; IoU
+// of both thresholded at 0.5).
 void mask_metrics(const uint8_t* render, const uint8_t* gt, const uint8_t* mask, const float* alpha, int w, int h,
                   ViewMetrics* m) {
   const size_t n = size_t(w) * size_t(h);
-  double se = 0, weight = 0, abs_diff = 0;
+  double abs_diff = 0;
   size_t both = 0, either = 0;
   for (size_t p = 0; p < n; ++p) {
     const double cover = mask[p] / 255.0;
-    for (int c = 0; c < 3; ++c) {
-      const double e = (double(render[3 * p + size_t(c)]) - double(gt[3 * p + size_t(c)])) / 255.0;
-      se += cover * e * e;
-    }
-    weight += 3 * cover;
     abs_diff += std::fabs(double(alpha[p]) - cover);
     const bool in_mask = mask[p] >= 128, in_render = alpha[p] >= 0.5f;
     both += in_mask && in_render;
     either += in_mask || in_render;
   }
-  m->psnr_masked = weight > 0 ? (se > 0 ? -10.0 * std::log10(se / weight) : 99.0) : -1.0;
+  const double psnr = metrics::psnr_u8_masked(render, gt, mask, w, h);
+  m->psnr_masked = std::isnan(psnr) ? -1.0 : psnr;
   m->alpha_mae = abs_diff / double(n);
   m->alpha_iou = either ? double(both) / double(either) : 1.0;
 }
