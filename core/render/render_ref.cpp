@@ -6,6 +6,7 @@
 #include <cstring>
 #include <utility>
 
+#include "gs/hash.h"
 #include "gs/simd/ref.h"
 
 namespace gs::ref {
@@ -25,11 +26,6 @@ simd::ProjectParamsT<T> project_params(const View<T>& v) {
 template <class T>
 void campos_of(const View<T>& v, T c[3]) {
   for (int k = 0; k < 3; ++k) c[k] = -(v.R[k] * v.t[0] + v.R[3 + k] * v.t[1] + v.R[6 + k] * v.t[2]);
-}
-
-uint64_t mix(uint64_t h, uint64_t v) {
-  h ^= v + 0x9e3779b97f4a7c15ull + (h << 6) + (h >> 2);
-  return h;
 }
 
 }  // namespace
@@ -59,19 +55,19 @@ Forward<T> render_fwd(const Scene<T>& s, const View<T>& v) {
   std::vector<Isect> isects;
   uint64_t sig = 0;
   for (size_t i = 0; i < n; ++i) {
-    sig = mix(sig, uint64_t(f.radii[i] > 0));
+    sig = hash_combine(sig, uint64_t(f.radii[i] > 0));
     if (f.radii[i] == 0) continue;
     int32_t r[4];
     float support[3];
     const float conic[3] = {float(f.conics[3 * i]), float(f.conics[3 * i + 1]), float(f.conics[3 * i + 2])};
     simd::splat_support(conic, float(s.opacities[i]), support);
     simd::tile_rect_supported(&p, &f.means2d[2 * i], f.radii[i], support, r);
-    for (int k = 0; k < 4; ++k) sig = mix(sig, uint64_t(r[k]));
+    for (int k = 0; k < 4; ++k) sig = hash_combine(sig, uint64_t(r[k]));
     for (int ty = r[1]; ty < r[3]; ++ty)
       for (int tx = r[0]; tx < r[2]; ++tx)
         if (simd::splat_reaches_tile(&f.means2d[2 * i], &f.conics[3 * i], support[0], tx, ty, p.width, p.height)) {
           isects.push_back({ty * p.tiles_x + tx, f.depths[i], uint32_t(i)});
-          sig = mix(sig, uint64_t(ty * p.tiles_x + tx));
+          sig = hash_combine(sig, uint64_t(ty * p.tiles_x + tx));
         }
   }
   std::sort(isects.begin(), isects.end(), [](const Isect& a, const Isect& b) {
@@ -87,7 +83,7 @@ Forward<T> render_fwd(const Scene<T>& s, const View<T>& v) {
   for (size_t k = 0; k < isects.size(); ++k) {
     const uint32_t g = isects[k].id;
     f.tile_ids[k] = g;
-    sig = mix(sig, g);
+    sig = hash_combine(sig, g);
     T* r = &f.splats[k * simd::kSplatStride];
     r[simd::kSplatMx] = f.means2d[2 * g]; r[simd::kSplatMy] = f.means2d[2 * g + 1];
     r[simd::kSplatA] = f.conics[3 * g]; r[simd::kSplatB] = f.conics[3 * g + 1]; r[simd::kSplatC] = f.conics[3 * g + 2];
@@ -118,12 +114,12 @@ Forward<T> render_fwd(const Scene<T>& s, const View<T>& v) {
     for (int x = 0; x < v.width; ++x) {
       const int t = (y / simd::kTileSize) * p.tiles_x + x / simd::kTileSize;
       const size_t pix = size_t(y) * v.width + x;
-      sig = mix(sig, uint64_t(f.last[pix]));
+      sig = hash_combine(sig, uint64_t(f.last[pix]));
       for (int32_t k = 0; k < f.last[pix]; ++k) {
         simd::SplatEval<T> e;
         const bool c = simd::eval_splat_ref(&f.splats[(f.tile_offsets[t] + k) * simd::kSplatStride], T(x) + T(0.5),
                                             T(y) + T(0.5), &e);
-        sig = mix(sig, uint64_t(c) * 2 + uint64_t(c && e.clamped));
+        sig = hash_combine(sig, uint64_t(c) * 2 + uint64_t(c && e.clamped));
       }
     }
   }

@@ -22,6 +22,7 @@
 #include "gs/io/colmap.h"
 #include "gs/io/image.h"
 #include "gs/platform/file.h"
+#include "support/rgb_image.h"
 #include "support/temp_dir.h"
 
 namespace {
@@ -33,20 +34,11 @@ constexpr int kW = 96, kH = 64, kFrames = 24;
 
 // A panning textured frame (enough detail for the sharpness measure).
 gs::io::Image8 frame_image(int i) {
-  gs::io::Image8 img;
-  img.width = kW;
-  img.height = kH;
-  img.channels = 3;
-  img.pixels.resize(size_t(kW) * kH * 3);
-  for (int y = 0; y < kH; ++y)
-    for (int x = 0; x < kW; ++x)
-      for (int c = 0; c < 3; ++c) {
-        const double u = x + 3.0 * i;
-        const bool check = (int(u / 7) + y / 7) % 2 == 0;
-        img.pixels[(size_t(y) * kW + size_t(x)) * 3 + size_t(c)] =
-            uint8_t((check ? 200 : 40) + 15 * std::sin(0.3 * u + c));
-      }
-  return img;
+  return gs::test::rgb_image(kW, kH, [i](int x, int y, int c) {
+    const double u = x + 3.0 * i;
+    const bool check = (int(u / 7) + y / 7) % 2 == 0;
+    return uint8_t((check ? 200 : 40) + 15 * std::sin(0.3 * u + c));
+  });
 }
 
 void write_frames(const std::string& dir) {

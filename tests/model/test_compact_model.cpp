@@ -116,31 +116,15 @@ TEST_CASE("compact: rANS byte streams round-trip and malformed streams are refus
   CHECK(enc.size() < skew.size() / 2);
 }
 
-ModelConfig small_config(ImageFeatureMode mode) {
-  ModelConfig c;
-  c.k = 4;
-  c.feature_dim = 8;
-  c.hidden = 12;
-  c.image_features = mode;
-  c.image_feature_dim = 5;
-  c.image_feature_hidden = 7;
-  c.max_anchors = 400;
-  c.max_gaussians = 1600;
-  return c;
-}
+ModelConfig small_config(ImageFeatureMode mode) { return test::small_file_test_config(mode, 400, 1600); }
 
 // A model with random rows and MLPs scaled so that some Gaussians are kept in every view.
 HybridModel random_model(ImageFeatureMode mode, uint64_t seed) {
-  const std::vector<float> xyz = sphere_points(3000, uint32_t(seed));
-  Expected<HybridModel> m = create_model(small_config(mode), xyz.data(), 3000, 3.0f, seed);
-  REQUIRE_MESSAGE(m.ok(), m.status().to_string());
-  HybridModel model = std::move(*m);
+  HybridModel model = test::sphere_model(small_config(mode), 3000, 3.0f, seed);
   std::mt19937_64 rng(seed);
   std::normal_distribution<float> g(0.0f, 1.0f);
+  test::randomise_anchor_rows(model, rng, g, 0.3f * model.voxel_size, -3.0f, 0.5f);
   const size_t M = model.anchor_count;
-  for (size_t i = 0; i < M * size_t(model.config.k) * 3; ++i) model.offsets[i] = 0.3f * model.voxel_size * g(rng);
-  for (size_t i = 0; i < M * 6; ++i) model.log_scales[i] = -3.0f + 0.5f * g(rng);
-  for (size_t i = 0; i < M * size_t(model.config.feature_dim); ++i) model.features[i] = g(rng);
   for (size_t r = 0; r < M && mode == ImageFeatureMode::kPaper; ++r) {
     for (int ch = 0; ch + 1 < kImageRawDim; ++ch) model.image_raw[r * kImageRawDim + size_t(ch)] = 0.5f + 0.2f * g(rng);
     model.image_raw[r * kImageRawDim + kImageRawDim - 1] = (r % 5) ? 1.0f : 0.0f;  // the valid flag

@@ -100,18 +100,8 @@ struct Problem {
   }
 };
 
-struct Decoded {
-  std::vector<double> means, log_scales, quats, opacities, colors;
-  std::vector<uint32_t> source;
-  NeuralGaussians<double> ng;
-  explicit Decoded(size_t cap) : means(3 * cap), log_scales(3 * cap), quats(4 * cap), opacities(cap), colors(3 * cap), source(cap) {
-    ng.means = means.data();
-    ng.log_scales = log_scales.data();
-    ng.quats = quats.data();
-    ng.opacities = opacities.data();
-    ng.colors = colors.data();
-    ng.source = source.data();
-  }
+struct Decoded : NeuralGaussianBuffers<double> {
+  explicit Decoded(size_t cap) { assign_rows(cap); }
 };
 
 double objective(const Problem& p, const Decoded& d) {

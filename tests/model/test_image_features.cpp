@@ -19,6 +19,7 @@
 #include "gs/platform/thread_pool.h"
 #include "support/alloc_counter.h"
 #include "support/model_fixtures.h"
+#include "support/rgb_image.h"
 
 namespace gs::model {
 namespace {
@@ -33,17 +34,7 @@ Camera look_at(const double C[3], const double at[3], float fx, float cx, float 
 // Colour of view v at pixel (x, y): a strongly varying but known pattern.
 uint8_t texel(int v, int x, int y, int c) { return uint8_t((x * (37 + 5 * c) + y * (11 + 7 * c) + 29 * v + x * y * (c + 1)) % 256); }
 
-io::Image8 make_image(int v) {
-  io::Image8 img;
-  img.width = kW;
-  img.height = kH;
-  img.channels = 3;
-  img.pixels.resize(size_t(kW) * kH * 3);
-  for (int y = 0; y < kH; ++y)
-    for (int x = 0; x < kW; ++x)
-      for (int c = 0; c < 3; ++c) img.pixels[(size_t(y) * kW + size_t(x)) * 3 + size_t(c)] = texel(v, x, y, c);
-  return img;
-}
+io::Image8 make_image(int v) { return test::rgb_image(kW, kH, [v](int x, int y, int c) { return texel(v, x, y, c); }); }
 
 // Reference pyramid level l of view v in double (exact 2^l x 2^l box averages, no rounding).
 double level_texel(int v, int l, int x, int y, int c) {

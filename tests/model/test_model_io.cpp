@@ -26,32 +26,17 @@ using test::sphere_points;
 using test::write_bytes;
 
 
-ModelConfig small_config(ImageFeatureMode mode) {
-  ModelConfig c;
-  c.k = 4;
-  c.feature_dim = 8;
-  c.hidden = 12;
-  c.image_features = mode;
-  c.image_feature_dim = 5;
-  c.image_feature_hidden = 7;
-  c.max_anchors = 300;
-  c.max_gaussians = 1000;  // capacity min(300, 1000 / 4) = 250
-  return c;
-}
+// Capacity min(300, 1000 / 4) = 250 anchors.
+ModelConfig small_config(ImageFeatureMode mode) { return test::small_file_test_config(mode, 300, 1000); }
 
 // A model whose live rows hold random values (so that a dropped or misplaced row shows), including
 // a negative zero and a denormal.
 HybridModel random_model(ImageFeatureMode mode, uint64_t seed) {
-  const std::vector<float> xyz = sphere_points(2000, uint32_t(seed));
-  Expected<HybridModel> m = create_model(small_config(mode), xyz.data(), 2000, 3.5f, seed);
-  REQUIRE_MESSAGE(m.ok(), m.status().to_string());
-  HybridModel model = std::move(*m);
+  HybridModel model = test::sphere_model(small_config(mode), 2000, 3.5f, seed);
   std::mt19937_64 rng(seed);
   std::normal_distribution<float> g(0.0f, 1.0f);
+  test::randomise_anchor_rows(model, rng, g, 1.0f, 0.0f, 1.0f);
   const size_t M = model.anchor_count;
-  for (size_t i = 0; i < M * size_t(model.config.k) * 3; ++i) model.offsets[i] = g(rng);
-  for (size_t i = 0; i < M * 6; ++i) model.log_scales[i] = g(rng);
-  for (size_t i = 0; i < M * size_t(model.config.feature_dim); ++i) model.features[i] = g(rng);
   for (size_t i = 0; i < model.image_raw.size() && i < M * kImageRawDim; ++i) model.image_raw[i] = g(rng);
   model.features[0] = -0.0f;
   model.features[1] = std::numeric_limits<float>::denorm_min();

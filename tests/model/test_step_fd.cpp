@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "gs/hash.h"
 #include "gs/model/step_graph.h"
 #include "gs/render.h"
 #include "gs/render_ref.h"
@@ -44,10 +45,8 @@ constexpr double kRelTol = 1e-5;
 constexpr double kAbsTol = 2e-9;
 constexpr double kMaxSkipFraction = 0.2;
 
-uint64_t mix(uint64_t h, uint64_t v) {
-  h ^= v + 0x9e3779b97f4a7c15ull + (h << 6) + (h >> 2);
-  return h * 0x100000001b3ull;
-}
+// gs::hash_combine then a multiply by the FNV prime (spreads each step's bits).
+uint64_t mix(uint64_t h, uint64_t v) { return hash_combine(h, v) * 0x100000001b3ull; }
 
 // Backend<double> of the scalar references; records a hash of every discrete decision.
 struct RefBackend {

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
-// Fixtures shared by the model tests: SfM-like points on a noisy sphere, look-at cameras and raw
-// file bytes (for truncating and corrupting model and checkpoint files).
+// Fixtures shared by the model tests: SfM-like points on a noisy sphere, small hybrid models with
+// random rows, look-at cameras and raw file bytes (for truncating and corrupting model and
+// checkpoint files).
 #pragma once
 
 #include <cmath>
@@ -10,9 +11,13 @@
 #include <iterator>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include <doctest/doctest.h>
+
 #include "gs/camera.h"
+#include "gs/model/hybrid_model.h"
 
 namespace gs::test {
 
@@ -27,6 +32,40 @@ inline std::vector<float> sphere_points(size_t n, uint32_t seed, const float cen
     for (int c = 0; c < 3; ++c) xyz[3 * i + size_t(c)] = (centre ? centre[c] : 0.0f) + v[c] * r;
   }
   return xyz;
+}
+
+// A small model configuration for the model file and codec tests: 4 offsets, 8-wide features,
+// 12-wide MLPs, 5-wide image features behind a 7-wide hidden layer.
+inline model::ModelConfig small_file_test_config(model::ImageFeatureMode mode, size_t max_anchors, size_t max_gaussians) {
+  model::ModelConfig c;
+  c.k = 4;
+  c.feature_dim = 8;
+  c.hidden = 12;
+  c.image_features = mode;
+  c.image_feature_dim = 5;
+  c.image_feature_hidden = 7;
+  c.max_anchors = max_anchors;
+  c.max_gaussians = max_gaussians;
+  return c;
+}
+
+// create_model on `points` sphere_points (seeded with seed, as is the model); fails the test on error.
+inline model::HybridModel sphere_model(const model::ModelConfig& c, size_t points, float scene_extent, uint64_t seed) {
+  const std::vector<float> xyz = sphere_points(points, uint32_t(seed));
+  Expected<model::HybridModel> m = model::create_model(c, xyz.data(), points, scene_extent, seed);
+  REQUIRE_MESSAGE(m.ok(), m.status().to_string());
+  return std::move(*m);
+}
+
+// Overwrites the live anchor rows with draws g() of one normal distribution, in this order: offsets
+// (offset_sigma g), log scales (log_scale_mean + log_scale_sigma g), features (g). g is shared with
+// the caller so that further draws continue the same stream.
+inline void randomise_anchor_rows(model::HybridModel& m, std::mt19937_64& rng, std::normal_distribution<float>& g,
+                                  float offset_sigma, float log_scale_mean, float log_scale_sigma) {
+  const size_t M = m.anchor_count;
+  for (size_t i = 0; i < M * size_t(m.config.k) * 3; ++i) m.offsets[i] = offset_sigma * g(rng);
+  for (size_t i = 0; i < M * 6; ++i) m.log_scales[i] = log_scale_mean + log_scale_sigma * g(rng);
+  for (size_t i = 0; i < M * size_t(m.config.feature_dim); ++i) m.features[i] = g(rng);
 }
 
 // Camera at centre C looking at `at`, y down roughly along -world y: x = z x up, y = z x x, a

@@ -13,34 +13,19 @@
 #include <string>
 #include <vector>
 
-#include <unistd.h>
-
 #include "gs/io/colmap.h"
 #include "gs/io/image.h"
 #include "hbgs/synth.h"
+#include "support/temp_dir.h"
 
 namespace fs = std::filesystem;
+using gs::test::TempDir;
 using hbgs::synth::generate_scene;
 using hbgs::synth::Scene;
 using hbgs::synth::SceneHit;
 using hbgs::synth::SynthOptions;
 
 namespace {
-
-// A fresh directory under the system temp dir, removed when the test ends.
-struct TempDir {
-  fs::path path;
-  explicit TempDir(const std::string& tag) {
-    path = fs::temp_directory_path() / ("hbgs_test_synth_" + std::to_string(getpid()) + "_" + tag);
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  std::string str() const { return path.string(); }
-};
 
 SynthOptions small_options() {
   SynthOptions o;
@@ -100,14 +85,14 @@ double median(std::vector<double> v) {
 }  // namespace
 
 TEST_CASE("synth: small scene reads back as a consistent COLMAP model") {
-  TempDir dir("model");
+  TempDir dir("synth_model");
   SynthOptions opt = small_options();
-  auto summary = generate_scene(opt, dir.str());
+  auto summary = generate_scene(opt, dir.path());
   REQUIRE_MESSAGE(summary.ok(), summary.status().to_string());
   CHECK(summary->num_views == 8);
   CHECK(summary->num_points == 500);
 
-  auto model_or = gs::io::read_colmap_text(dir.str() + "/sparse/0");
+  auto model_or = gs::io::read_colmap_text(dir.path() + "/sparse/0");
   REQUIRE_MESSAGE(model_or.ok(), model_or.status().to_string());
   const gs::io::ColmapModel& model = *model_or;
 
@@ -129,7 +114,7 @@ TEST_CASE("synth: small scene reads back as a consistent COLMAP model") {
     by_id[im.id] = &im;
     names.push_back(im.name);
     CHECK(im.camera_id == cam.id);
-    auto img = gs::io::read_image(dir.str() + "/images/" + im.name);
+    auto img = gs::io::read_image(dir.path() + "/images/" + im.name);
     REQUIRE_MESSAGE(img.ok(), img.status().to_string());
     CHECK(img->width == 64);
     CHECK(img->height == 48);
@@ -183,17 +168,17 @@ TEST_CASE("synth: small scene reads back as a consistent COLMAP model") {
 }
 
 TEST_CASE("synth: output is deterministic per seed and independent of the thread count") {
-  TempDir a("det_a"), b("det_b"), c("det_c");
+  TempDir a("synth_det_a"), b("synth_det_b"), c("synth_det_c");
   SynthOptions opt = small_options();
   opt.seed = 7;
   opt.threads = 1;
-  REQUIRE(generate_scene(opt, a.str()).ok());
+  REQUIRE(generate_scene(opt, a.path()).ok());
   opt.threads = 3;
-  REQUIRE(generate_scene(opt, b.str()).ok());
+  REQUIRE(generate_scene(opt, b.path()).ok());
   opt.seed = 8;
-  REQUIRE(generate_scene(opt, c.str()).ok());
+  REQUIRE(generate_scene(opt, c.path()).ok());
 
-  auto ta = read_tree(a.path), tb = read_tree(b.path), tc = read_tree(c.path);
+  auto ta = read_tree(a.path()), tb = read_tree(b.path()), tc = read_tree(c.path());
   CHECK(ta.size() == 8 + 3);
   CHECK(ta == tb);
   REQUIRE(tc.size() == ta.size());
@@ -207,7 +192,7 @@ TEST_CASE("synth: output is deterministic per seed and independent of the thread
 }
 
 TEST_CASE("synth: written poses match the rendered geometry and colours") {
-  TempDir dir("rays");
+  TempDir dir("synth_rays");
   SynthOptions opt;
   opt.seed = 3;
   opt.width = 96;
@@ -215,8 +200,8 @@ TEST_CASE("synth: written poses match the rendered geometry and colours") {
   opt.arc_views = 3;
   opt.orbit_views = 3;
   opt.num_points = 300;
-  REQUIRE(generate_scene(opt, dir.str()).ok());
-  auto model_or = gs::io::read_colmap_text(dir.str() + "/sparse/0");
+  REQUIRE(generate_scene(opt, dir.path()).ok());
+  auto model_or = gs::io::read_colmap_text(dir.path() + "/sparse/0");
   REQUIRE(model_or.ok());
   const gs::io::ColmapModel& model = *model_or;
   const std::vector<double>& K = model.cameras.at(0).params;
@@ -228,7 +213,7 @@ TEST_CASE("synth: written poses match the rendered geometry and colours") {
   std::vector<double> err_true, err_shift;  // |PNG - single-ray colour|, 0..255
   std::map<uint32_t, gs::io::Image8> images;
   for (const auto& im : model.images) {
-    auto img_or = gs::io::read_image(dir.str() + "/images/" + im.name);
+    auto img_or = gs::io::read_image(dir.path() + "/images/" + im.name);
     REQUIRE(img_or.ok());
     const gs::io::Image8& img = *img_or;
     images[im.id] = img;
@@ -295,11 +280,11 @@ TEST_CASE("synth: written poses match the rendered geometry and colours") {
 }
 
 TEST_CASE("synth: images are non-degenerate") {
-  TempDir dir("images");
+  TempDir dir("synth_images");
   SynthOptions opt = small_options();
   opt.num_points = 50;
-  REQUIRE(generate_scene(opt, dir.str()).ok());
-  for (const auto& e : fs::directory_iterator(dir.path / "images")) {
+  REQUIRE(generate_scene(opt, dir.path()).ok());
+  for (const auto& e : fs::directory_iterator(dir / "images")) {
     auto img_or = gs::io::read_image(e.path().string());
     REQUIRE(img_or.ok());
     const gs::io::Image8& img = *img_or;
@@ -331,17 +316,17 @@ TEST_CASE("synth: images are non-degenerate") {
 }
 
 TEST_CASE("synth: invalid options are refused") {
-  TempDir dir("invalid");
+  TempDir dir("synth_invalid");
   SynthOptions opt = small_options();
   opt.width = 0;
-  auto r = generate_scene(opt, dir.str());
+  auto r = generate_scene(opt, dir.path());
   CHECK(!r.ok());
   CHECK(r.status().code() == gs::StatusCode::kInvalidArgument);
   opt = small_options();
   opt.arc_views = 0;
   opt.orbit_views = 0;
-  CHECK(!generate_scene(opt, dir.str()).ok());
+  CHECK(!generate_scene(opt, dir.path()).ok());
   opt = small_options();
   opt.point_noise = -1.0f;
-  CHECK(!generate_scene(opt, dir.str()).ok());
+  CHECK(!generate_scene(opt, dir.path()).ok());
 }

@@ -7,13 +7,15 @@
 #include <cmath>
 #include <cstdint>
 
+#include "gs/hash.h"
 #include "gs/random.h"
 
 namespace hbgs::synth::detail {
 
 using gs::mix64;  // SplitMix64's finaliser (gs/random.h): hash and RNG step
 
-inline uint64_t hash_combine(uint64_t h, uint64_t v) { return mix64(h ^ (v + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2))); }
+// gs::hash_combine (gs/hash.h) then mix64: every output bit depends on every input bit.
+inline uint64_t hash_combine(uint64_t h, uint64_t v) { return mix64(gs::hash_combine(h, v)); }
 
 // Uniform double in [0, 1) from the top 53 bits of a hash.
 inline double to_unit(uint64_t h) { return double(h >> 11) * (1.0 / 9007199254740992.0); }

@@ -13,6 +13,8 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <initializer_list>
+#include <vector>
 
 #include "gs/camera.h"
 
@@ -39,6 +41,28 @@ struct NeuralGaussians {
   T* opacities = nullptr;   // [N] tanh output in (0, 1)
   T* colors = nullptr;      // [N, 3]
   uint32_t* source = nullptr;  // [N] v * k + j
+};
+
+// Owned zeroed arrays behind a NeuralGaussians with room for n rows (ng points into them, so a
+// copy would point into the original: move it, or assign again after copying).
+template <class T>
+struct NeuralGaussianBuffers {
+  std::vector<T> means, log_scales, quats, opacities, colors;
+  std::vector<uint32_t> source;
+  NeuralGaussians<T> ng;
+
+  void assign_rows(size_t n) {
+    for (auto* v : {&means, &log_scales, &colors}) v->assign(n * 3, T(0));
+    quats.assign(n * 4, T(0));
+    opacities.assign(n, T(0));
+    source.assign(n, 0);
+    ng.means = means.data();
+    ng.log_scales = log_scales.data();
+    ng.quats = quats.data();
+    ng.opacities = opacities.data();
+    ng.colors = colors.data();
+    ng.source = source.data();
+  }
 };
 
 // Camera centre C = -R^T t, world units.

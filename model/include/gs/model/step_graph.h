@@ -75,17 +75,16 @@ struct StepResult {
   size_t visible_anchors = 0, gaussians = 0;
 };
 
+// Buffers of one training or render step. The kept neural Gaussians (ng and its arrays means ...
+// source, [cap k, ...]) come from NeuralGaussianBuffers.
 template <class T>
-struct StepWorkspace {
+struct StepWorkspace : NeuralGaussianBuffers<T> {
   std::vector<uint32_t> rows;                         // [cap] visible anchor rows
   std::vector<T> raw, img_hidden, g, v_g;             // [cap, R] [cap, Hi] [cap, G] [cap, G]
   std::vector<T> X, v_X, v_x_tmp;                     // [cap, D]
   std::vector<T> hidden[3], y[3], v_y[3];             // decoder MLPs: opacity, cov, colour
-  std::vector<T> means, log_scales, quats, opacities, colors;            // [cap k, ...]
   std::vector<T> v_means, v_log_scales, v_quats, v_opacities, v_colors, v_means2d, v_ls_volume;
-  std::vector<uint32_t> source;                       // [cap k]
   std::vector<T> rgb, v_rgb;                          // [H, W, 3]
-  NeuralGaussians<T> ng;
   size_t capacity = 0;
 
   // gradients = false: the forward buffers only (rendering and registration decode but never
@@ -109,22 +108,13 @@ struct StepWorkspace {
       y[m].assign(cap * size_t(shapes[m].out), T(0));
       v_y[m].assign(gcap * size_t(shapes[m].out), T(0));
     }
-    for (auto* v : {&means, &log_scales, &colors}) v->assign(N * 3, T(0));
+    this->assign_rows(N);
     for (auto* v : {&v_means, &v_log_scales, &v_colors, &v_ls_volume}) v->assign(gN * 3, T(0));
-    quats.assign(N * 4, T(0));
     v_quats.assign(gN * 4, T(0));
-    opacities.assign(N, T(0));
     v_opacities.assign(gN, T(0));
     v_means2d.assign(gN * 2, T(0));
-    source.assign(N, 0);
     rgb.assign(size_t(width) * size_t(height) * 3, T(0));
     v_rgb.assign(gradients ? rgb.size() : 0, T(0));
-    ng.means = means.data();
-    ng.log_scales = log_scales.data();
-    ng.quats = quats.data();
-    ng.opacities = opacities.data();
-    ng.colors = colors.data();
-    ng.source = source.data();
   }
 };
 
