@@ -306,7 +306,7 @@ TEST_CASE("image features in visible mode: the colour mean and spread over the v
       for (int c = 0; c < 3; ++c) {
         double sum = 0, sq = 0;
         for (int j : views) {
-          double xc[3], u, v;
+          double xc[3], u = 0, v = 0;
           sees(rig.cams[size_t(j)], p, xc, &u, &v);
           const double s = sample_ref(j, l, u, v, c);
           sum += s, sq += s * s;
