@@ -8,9 +8,12 @@
 
 namespace gs::simd {
 
-// R = rotation of the unit quaternion (w, x, y, z), row-major [9].
+// R = rotation of the unit quaternion (w, x, y, z), row-major [9]. Internal linkage (static): the
+// per-ISA kernel translation units instantiate it on their own batch types, and no symbol may be
+// shared between them outside their arch namespace (tests/simd/check_isa_symbols.sh; an unoptimised
+// or sanitised build would otherwise emit weak copies).
 template <class T>
-inline void rotmat_of_unit_quat(const T& w, const T& x, const T& y, const T& z, T R[9]) {
+static inline void rotmat_of_unit_quat(const T& w, const T& x, const T& y, const T& z, T R[9]) {
   const T one(1.0f), two(2.0f);
   R[0] = one - two * (y * y + z * z);
   R[1] = two * (x * y - w * z);
