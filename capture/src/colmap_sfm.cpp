@@ -65,7 +65,7 @@ std::string thread_arg(int threads) { return std::to_string(threads > 0 ? thread
 // off by up to 255: stray data, not rounding), and exhaustive matching on one and the same database,
 // one thread, gives different matches for a third of the image pairs (193 of 595). So thread
 // counts and the seed cannot pin COLMAP's result down; callers that need a sound reconstruction
-// check it (jobs/src/train.cpp retries a suspect SfM pose initialisation).
+// must check it themselves (issue 26: the train job does not yet retry a suspect reconstruction).
 constexpr const char* kColmapSeed = "0";
 
 }  // namespace

@@ -12,7 +12,7 @@
 // (1e-15, 3DGS's value) everywhere unless a caller's options say otherwise (TrainOptions::adam_eps).
 //
 // Densification (anchor growing and pruning under the budgets) is the other half of the reference
-// optimiser; it lives with the trainer's state in core/model/trainer.cpp (it needs the model).
+// optimiser; it lives with the trainer's state in model/trainer_anchors.cpp (it needs the model).
 #pragma once
 
 #include <cstddef>
