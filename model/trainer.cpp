@@ -69,6 +69,7 @@ Status Trainer::Impl::plan(const TrainOptions& options) {
   grad_denom.resize(c * K, 0);
   existing_cells.resize(c, detail::CellKey{0, 0, 0});
   cand.resize(c * K, {detail::CellKey{0, 0, 0}, 0u});
+  cell_scores.resize(c * K, {0.0f, 0u});
   pruned.resize(c, 0);
   uint64_t bytes = Renderer::plan_bytes(*rc);
   registrar.reset();
@@ -87,7 +88,7 @@ Status Trainer::Impl::plan(const TrainOptions& options) {
                     model.image_raw.size()) * 4;
   for (const detail::ParamGroup& g : groups) bytes += uint64_t(g.grad.size() * 3) * 4;
   bytes += uint64_t(ws.X.size() * 3 + ws.means.size() * 4 + ws.quats.size() * 2 + ws.rgb.size() * 2) * 4;
-  bytes += uint64_t(c * K) * (4 + 4 + sizeof(cand[0]));
+  bytes += uint64_t(c * K) * (4 + 4 + sizeof(cand[0]) + sizeof(cell_scores[0]));
   planned_bytes = bytes;
   return Status::Ok();
 }
@@ -343,6 +344,7 @@ Status Trainer::step(IterationStats* stats) {
   StepResult res;
   GS_RETURN_IF_ERROR(step_forward_backward(d.backend, p, cam, d.target.data(), d.opt.step, d.ws, &grads, &res));
   d.last_visible = res.visible_anchors;
+  d.last_gaussians = res.gaussians;
   if (!d.opt.test_nonfinite_iterations.empty() &&
       std::find(d.opt.test_nonfinite_iterations.begin(), d.opt.test_nonfinite_iterations.end(), it) != d.opt.test_nonfinite_iterations.end())
     d.groups.front().grad[0] = std::numeric_limits<float>::quiet_NaN();

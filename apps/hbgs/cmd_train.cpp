@@ -157,6 +157,10 @@ Command add_train_command(CLI::App& parent) {
   sub->add_option("--max-gaussians", o->max_gaussians, "Hard budget on neural Gaussians per view")
       ->capture_default_str()
       ->check(CLI::Range(size_t(1), size_t(1) << 34));
+  sub->add_option("--gaussians-per-pixel", o->gaussians_per_pixel,
+                  "Growth budget: neural Gaussians per training view at most this many per pixel (0: none)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--voxel-size", o->voxel_size, "Anchor voxel size in world units (0: automatic)")
       ->capture_default_str()
       ->check(CLI::Range(0.0f, 1e9f));
@@ -208,9 +212,12 @@ Command add_train_command(CLI::App& parent) {
       ->capture_default_str()
       ->check(CLI::Range(-1, 100000000));
   sub->add_option("--coarse-levels", o->coarse_levels,
-                  "Coarse-to-fine halvings over the first 30% of iterations (-1: 2 with --optimize-poses unless --pose-init sfm, else 0)")
+                  "Coarse-to-fine halvings over the first --coarse-fraction of the iterations (-1: 2 with --optimize-poses unless --pose-init sfm, else 0)")
       ->capture_default_str()
       ->check(CLI::Range(-1, 4));
+  sub->add_option("--coarse-fraction", o->coarse_fraction, "Share of the iterations the coarse-to-fine levels span")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   sub->add_option("--pose-lr", o->pose_lr, "Initial pose learning rate (rad; translation x scene extent)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));

@@ -28,6 +28,7 @@ void for_each_recorded_option(TrainRunOptions* a, Visit&& visit) {
   visit("background", &a->background, true);
   visit("max-anchors", &a->max_anchors, true);
   visit("max-gaussians", &a->max_gaussians, true);
+  visit("gaussians-per-pixel", &a->gaussians_per_pixel, true);
   visit("voxel-size", &a->voxel_size, true);
   visit("offsets", &a->offsets, true);
   visit("feature-dim", &a->feature_dim, true);
@@ -36,6 +37,7 @@ void for_each_recorded_option(TrainRunOptions* a, Visit&& visit) {
   visit("pose-noise-on", &a->pose_noise_on, true);
   visit("optimize-poses", &a->optimize_poses, true);
   visit("coarse-levels", &a->coarse_levels, true);
+  visit("coarse-fraction", &a->coarse_fraction, true);
   visit("feature-refresh", &a->feature_refresh, true);
   visit("pose-lr", &a->pose_lr, true);
   visit("point-align", &a->point_align, true);
@@ -121,6 +123,7 @@ std::string run_json(const TrainRunOptions& a) {
   j["options"] = {{"iterations", a.iterations},         {"image-features", a.image_features},
                   {"background", a.background},
                   {"max-anchors", a.max_anchors},       {"max-gaussians", a.max_gaussians},
+                  {"gaussians-per-pixel", a.gaussians_per_pixel},
                   {"voxel-size", a.voxel_size},         {"seed", a.seed},
                   {"offsets", a.offsets},               {"feature-dim", a.feature_dim},
                   {"max-width", a.max_width},           {"checkpoint-every", a.checkpoint_every},
@@ -128,6 +131,7 @@ std::string run_json(const TrainRunOptions& a) {
                   {"lpips-weights", a.lpips_weights},   {"threads", a.threads},
                   {"pose-noise", a.pose_noise},         {"pose-noise-on", a.pose_noise_on},
                   {"optimize-poses", a.optimize_poses}, {"coarse-levels", a.coarse_levels},
+                  {"coarse-fraction", a.coarse_fraction},
                   {"feature-refresh", a.feature_refresh},
                   {"pose-lr", a.pose_lr},               {"point-align", a.point_align},
                   {"register-passes", a.register_passes}, {"pose-init", a.pose_init},
@@ -154,9 +158,11 @@ Expected<ResolvedTraining> resolve_training(const TrainRunOptions& a) {
   t.schedule_iterations = a.iterations;
   t.seed = a.seed;
   t.optimize_poses = a.optimize_poses;
+  t.growth_gaussians_per_pixel = a.gaussians_per_pixel;
   // Coarse to fine helps poses a few degrees off; after SfM initialisation they are already close,
   // and the low-resolution phase would only cost detail (measured: 28.31 against 28.69 dB on synth).
   t.coarse_levels = a.coarse_levels >= 0 ? a.coarse_levels : (a.optimize_poses && a.pose_init != "sfm" ? 2 : 0);
+  t.coarse_fraction = a.coarse_fraction;
   t.lr_pose_rotation_init = t.lr_pose_translation_init = a.pose_lr;
   // Image features follow moving poses; with fixed poses they never change.
   t.image_feature_refresh = a.feature_refresh >= 0 ? a.feature_refresh : (a.optimize_poses ? 250 : 0);

@@ -49,6 +49,9 @@ struct TrainRunOptions {
   // white, random (a colour per iteration; evaluated on black) or r,g,b.
   std::string background = "black";
   size_t max_anchors = 50000, max_gaussians = 500000;
+  // Growth budget: neural Gaussians per training view at most this many per pixel of the view (0: no
+  // budget; model::TrainOptions::growth_gaussians_per_pixel).
+  double gaussians_per_pixel = 0;
   float voxel_size = 0.0f;  // anchor voxel size in world units (0: automatic)
   int offsets = 10;         // neural Gaussians (offsets) per anchor, k
   int feature_dim = 32;     // learned anchor feature width
@@ -72,6 +75,7 @@ struct TrainRunOptions {
   // whose poses SfM already initialised). Not an option: run.json does not record it.
   const SfmPoseInitializer* sfm_pose_init = nullptr;
   int coarse_levels = -1;    // coarse-to-fine halvings (-1: 2 when optimising poses without SfM init, else 0)
+  double coarse_fraction = 0.3;  // share of the iterations the coarse levels span
   int feature_refresh = -1;  // image features recomputed every N iterations (-1: 250 when optimising poses, else 0)
   double pose_lr = 5e-5;     // initial pose learning rate (rad; translation x scene extent)
   bool resume = false, force = false;

@@ -50,6 +50,12 @@ struct TrainOptions {
   int stat_start = 500, update_from = 1500, update_interval = 100, update_until = 15000;
   double densify_grad_threshold = 0.0002, success_threshold = 0.8, min_opacity = 0.005;
   int update_depth = 3, update_init_factor = 16, update_hierarchy_factor = 4;
+  // Growth budget (0: none): neural Gaussians per training view at most this many per pixel of the
+  // view. A growth step predicts the Gaussians per view from the anchors each view sees and the kept
+  // Gaussians per visible anchor of the current step; when the candidates would exceed the budget,
+  // it takes the cells with the largest mean gradients first. The render cost of an iteration
+  // follows the Gaussians per view, so this bounds it whatever the run's length.
+  double growth_gaussians_per_pixel = 0;
   // Image features are recomputed from the current poses every this many iterations (0: never;
   // the training job, gs/jobs/train.h, sets 250 when it optimises the poses).
   int image_feature_refresh = 0;
