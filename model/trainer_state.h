@@ -83,6 +83,12 @@ struct Trainer::Impl {
   Status growth_status;        // a failed growth (allocation) reported by step()
   int growths = 0;             // times the rows grew (each one allocation, at a densification step)
   size_t last_visible = 0;
+  // The run's schedule as it goes (Trainer::retarget): the learning-rate progress fraction reached
+  // (never decreasing), the iteration where coarse to fine ends, and whether retarget was called
+  // (then the checkpoint records the schedule).
+  double lr_progress = 0;
+  double coarse_end = 0;
+  bool retargeted = false;
 
   size_t cap() const { return model.capacity(); }
   size_t budget() const { return model.config.anchor_capacity(); }
