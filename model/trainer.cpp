@@ -325,8 +325,9 @@ Status Trainer::step(IterationStats* stats) {
   Impl& d = *impl_;
   const double t0 = platform::now_seconds();
   const int it = d.iteration + 1;
-  // it / schedule_iterations, as expon_lr computes it; after a retarget never below the last step's.
-  d.lr_progress = std::max(d.lr_progress, double(it) / double(std::max(d.opt.schedule_iterations, 1)));
+  // it / schedule_iterations (at most 1), as expon_lr computes it; after a retarget never below the
+  // last step's.
+  d.lr_progress = std::max(d.lr_progress, std::min(1.0, double(it) / double(std::max(d.opt.schedule_iterations, 1))));
   const int vi = d.next_view();
   const io::DatasetView& view = *d.views[size_t(vi)];
   const int scale = d.downscale_at(it);
