@@ -85,6 +85,12 @@ struct Trainer::Impl {
   size_t last_visible = 0;    // visible anchors of the last step
   size_t last_gaussians = 0;  // kept neural Gaussians of the last step
   std::vector<std::pair<float, uint32_t>> cell_scores;  // [cap k] (-mean gradient, first candidate) per new cell
+  // The run's schedule as it goes (Trainer::retarget): the learning-rate progress fraction reached
+  // (never decreasing), the iteration where coarse to fine ends, and whether retarget was called
+  // (then the checkpoint records the schedule).
+  double lr_progress = 0;
+  double coarse_end = 0;
+  bool retargeted = false;
 
   size_t cap() const { return model.capacity(); }
   size_t budget() const { return model.config.anchor_capacity(); }
