@@ -83,6 +83,7 @@ struct Trainer::Impl {
   Status growth_status;        // a failed growth (allocation) reported by step()
   int growths = 0;             // times the rows grew (each one allocation, at a densification step)
   size_t last_visible = 0;
+  StageTimes* stage_times = nullptr;  // Trainer::set_stage_times
 
   size_t cap() const { return model.capacity(); }
   size_t budget() const { return model.config.anchor_capacity(); }

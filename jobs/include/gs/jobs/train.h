@@ -165,6 +165,9 @@ struct TrainRunSummary {
   model::EvalResult final_eval;  // the test views at the last iteration
   double train_seconds = 0, median_iteration_ms = 0, mean_gaussians = 0;
   int skipped_steps = 0;  // steps skipped by the numerical guard (non-finite loss or gradient)
+  // Mean wall ms per iteration of each training stage (gs/stage_times.h: index by Stage), over the
+  // run's steps; progress.json holds the same as "stage_ms_per_iteration".
+  double stage_ms_per_iteration[kStageCount] = {};
   size_t anchors = 0, train_views = 0, test_views = 0;
   uint64_t model_bytes = 0, model_file_bytes = 0;
   pose::PoseErrors train_pose_input, train_pose_final;  // Sim(3)-aligned, against the true poses
