@@ -160,7 +160,8 @@ void check_allocation_free(platform::ThreadPool* pool, StageTimes* profile = nul
     }
     allocations = scope.count();
   }
-  MESSAGE(std::string(pool ? "2 threads" : "no pool") + (profile ? ", profiled" : "") << ": " << allocations << " allocations over iterations 21-40 (" << adjusted
+  const std::string label = std::string(pool ? "2 threads" : "no pool") + (profile ? ", profiled" : "");
+  MESSAGE(label << ": " << allocations << " allocations over iterations 21-40 (" << adjusted
                                            << " with anchor adjustment, anchors " << anchors_before << " -> "
                                            << t->model().anchor_count << ")");
   CHECK(allocations == 0);
