@@ -330,8 +330,14 @@ Status Trainer::step(IterationStats* stats) {
   const uint64_t t0_ns = times ? platform::now_ns() : 0;
   struct LendTimers {
     Impl& d;
-    LendTimers(Impl& impl, StageTimes* t) : d(impl) { d.renderer.set_stage_times(t), d.ws.stage_times = t; }
-    ~LendTimers() { d.renderer.set_stage_times(nullptr), d.ws.stage_times = nullptr; }
+    LendTimers(Impl& impl, StageTimes* t) : d(impl) {
+      d.renderer.set_stage_times(t);
+      d.ws.stage_times = t;
+    }
+    ~LendTimers() {
+      d.renderer.set_stage_times(nullptr);
+      d.ws.stage_times = nullptr;
+    }
   } lend(d, times);
   const int it = d.iteration + 1;
   const int vi = d.next_view();

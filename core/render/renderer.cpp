@@ -567,11 +567,10 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
 
   // 3. Per tile: sort by (depth, id), copy the records in that order, blend.
   auto raster = [&](size_t b, size_t e, int) {
-    uint64_t sort_ns = 0, raster_ns = 0;
+    uint64_t sort_ns = 0, raster_ns = 0, t0 = times ? platform::now_ns() : 0;  // two clock reads per tile
     for (size_t tile = b; tile < e; ++tile) {
       uint32_t begin, end;
       m.tile_range(int(tile), &begin, &end);
-      const uint64_t t0 = times ? platform::now_ns() : 0;
       sort_tile_keys(m.keys + begin, m.keys_tmp + begin, end - begin);
       for (uint32_t k = begin; k < end; ++k)
         std::memcpy(m.splats + size_t(k) * simd::kSplatStride, m.records + size_t(uint32_t(m.keys[k])) * simd::kSplatStride,
@@ -590,6 +589,7 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
         const uint64_t t2 = platform::now_ns();
         sort_ns += t1 - t0;
         raster_ns += t2 - t1;
+        t0 = t2;
       }
     }
     if (times) {
