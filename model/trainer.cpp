@@ -325,6 +325,21 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
 Status Trainer::step(IterationStats* stats) {
   Impl& d = *impl_;
   const double t0 = platform::now_seconds();
+  // The stage timers are lent to the renderer and the workspace for this step only (render() and
+  // the evaluations between steps stay out of the profile).
+  StageTimes* const times = d.stage_times;
+  const uint64_t t0_ns = times ? platform::now_ns() : 0;
+  struct LendTimers {
+    Impl& d;
+    LendTimers(Impl& impl, StageTimes* t) : d(impl) {
+      d.renderer.set_stage_times(t);
+      d.ws.stage_times = t;
+    }
+    ~LendTimers() {
+      d.renderer.set_stage_times(nullptr);
+      d.ws.stage_times = nullptr;
+    }
+  } lend(d, times);
   const int it = d.iteration + 1;
   // it / schedule_iterations (at most 1), as expon_lr computes it; after a retarget never below the
   // last step's.
@@ -348,6 +363,7 @@ Status Trainer::step(IterationStats* stats) {
   GS_RETURN_IF_ERROR(step_forward_backward(d.backend, p, cam, d.target.data(), d.opt.step, d.ws, &grads, &res));
   d.last_visible = res.visible_anchors;
   d.last_gaussians = res.gaussians;
+  StageClock clock(times);
   if (!d.opt.test_nonfinite_iterations.empty() &&
       std::find(d.opt.test_nonfinite_iterations.begin(), d.opt.test_nonfinite_iterations.end(), it) != d.opt.test_nonfinite_iterations.end())
     d.groups.front().grad[0] = std::numeric_limits<float>::quiet_NaN();
@@ -355,9 +371,18 @@ Status Trainer::step(IterationStats* stats) {
   const bool finite = std::isfinite(res.loss) && d.gradients_finite(M, v_pose);
   if (finite) {
     d.nonfinite_in_a_row = 0;
-    if (it > d.opt.stat_start && it < d.opt.update_until) d.accumulate_stats(cam);
+    if (it > d.opt.stat_start && it < d.opt.update_until) {
+      clock.restart();
+      d.accumulate_stats(cam);
+      clock.lap(kStageStats);
+      if (times) ++times->stats_steps;
+    }
+    clock.restart();
     d.adam_all(it);
     if (d.opt.optimize_poses) d.pose_adam(size_t(vi), v_pose, it);
+    clock.lap(kStageAdam);
+    if (times)
+      for (const detail::ParamGroup& g : d.groups) times->adam_floats += g.live(M);
   } else {
     if (d.nonfinite_in_a_row == 0) d.first_nonfinite = it;
     ++d.nonfinite_steps;
@@ -370,9 +395,12 @@ Status Trainer::step(IterationStats* stats) {
   }
   bool adjusted = false;
   if (it > d.opt.update_from && it % d.opt.update_interval == 0 && it < d.opt.update_until) {
+    clock.restart();
     d.adjust_anchors();
+    clock.lap(kStageAdjust);
     if (!d.growth_status.ok()) return d.growth_status;
     adjusted = true;
+    if (times) ++times->adjust_steps;
   }
   bool refresh = d.paper() && d.opt.image_feature_refresh > 0 && it % d.opt.image_feature_refresh == 0;
   int moved = -1;
@@ -386,7 +414,12 @@ Status Trainer::step(IterationStats* stats) {
     GS_RETURN_IF_ERROR(d.register_held(it, &released));
     refresh = refresh || (d.paper() && released > 0);
   }
-  if (refresh) d.refresh_image_features();
+  if (refresh) {
+    clock.restart();
+    d.refresh_image_features();
+    clock.lap(kStageImageFeatures);
+    if (times) ++times->refresh_steps;
+  }
   d.iteration = it;
   if (stats) {
     stats->iteration = it;
@@ -403,6 +436,12 @@ Status Trainer::step(IterationStats* stats) {
     stats->seconds = platform::now_seconds() - t0;
     stats->skipped_nonfinite = !finite;
     stats->nonfinite_steps = d.nonfinite_steps;
+  }
+  if (times) {
+    times->anchors += M;
+    times->visible_anchors += res.visible_anchors;
+    times->gaussians += res.gaussians;
+    times->finish_iteration(platform::now_ns() - t0_ns);
   }
   return Status::Ok();
 }
@@ -461,6 +500,7 @@ Status Trainer::retarget(const TrainOptions& s) {
 }
 
 double Trainer::schedule_progress() const { return impl_->lr_progress; }
+void Trainer::set_stage_times(StageTimes* times) { impl_->stage_times = times; }
 
 int Trainer::iteration() const { return impl_->iteration; }
 const std::vector<Camera>& Trainer::cameras() const { return impl_->view_cameras; }

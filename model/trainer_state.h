@@ -91,6 +91,7 @@ struct Trainer::Impl {
   double lr_progress = 0;
   double coarse_end = 0;
   bool retargeted = false;
+  StageTimes* stage_times = nullptr;  // Trainer::set_stage_times
 
   size_t cap() const { return model.capacity(); }
   size_t budget() const { return model.config.anchor_capacity(); }

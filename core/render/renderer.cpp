@@ -6,6 +6,7 @@
 // Pose normal equations: forward-mode twist tangents per Gaussian (parallel), then per tile the
 // tangents carried through blending into per-tile J^T W J / J^T W r slots, summed in tile order.
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -16,6 +17,7 @@
 #include "gs/render.h"
 #include "gs/simd/kernel_table.h"
 #include "gs/simd/ref.h"
+#include "gs/stage_times.h"
 
 namespace gs {
 namespace {
@@ -91,6 +93,22 @@ inline int lowest_bit(uint64_t bits) {
 #endif
 }
 
+// Pixels of a tile (x0, y0, w x h) inside a splat record's alpha >= 1/255 support box (the
+// [ext_x, ext_y] half-extents around its mean, pixel centres at +0.5): the pixel-splat pairs a tile
+// kernel evaluates, up to SIMD rounding and early termination. For the profile's counting model only.
+uint64_t support_pixels_in_tile(const float* s, int x0, int y0, int w, int h) {
+  const float ex = s[simd::kSplatExtX], ey = s[simd::kSplatExtY];
+  if (!(ex >= 0.0f)) return 0;
+  auto span = [](float centre, float ext, int first, int n) -> uint64_t {
+    // pixels i in [0, n) with |first + i + 0.5 - centre| <= ext
+    const double lo = std::ceil(double(centre) - double(ext) - 0.5 - first);
+    const double hi = std::floor(double(centre) + double(ext) - 0.5 - first);
+    const double a = std::max(lo, 0.0), b = std::min(hi, double(n - 1));
+    return b >= a ? uint64_t(b - a + 1) : 0;
+  };
+  return span(s[simd::kSplatMx], ex, x0, w) * span(s[simd::kSplatMy], ey, y0, h);
+}
+
 template <class F>
 void run_parallel(platform::ThreadPool* pool, size_t n, size_t grain, F& f) {
   if (n == 0) return;
@@ -142,6 +160,9 @@ struct Renderer::Impl {
   int tiles = 0;
   float campos[3];
   bool forward_ok = false;  // the last forward() completed in float (backward and pose_normal_equations need its state)
+  // Profiling (Renderer::set_stage_times): CPU ns of the tile pass's sort + copy and blending, and
+  // the support-box pixel count, summed over threads.
+  std::atomic<uint64_t> sort_cpu_ns{0}, raster_cpu_ns{0}, splat_pixels{0};
 
   void carve(Carver& c, const RenderCapacity& cap) {
     const uint64_t G = cap.max_gaussians, I = cap.max_isects, P = uint64_t(cap.max_width) * uint64_t(cap.max_height);
@@ -427,6 +448,7 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
   const float* R = camera.pose.R;
   const float* t = camera.pose.t;
   for (int k = 0; k < 3; ++k) m.campos[k] = -(R[k] * t[0] + R[3 + k] * t[1] + R[6 + k] * t[2]);
+  StageClock clock(times_);
 
   // 1. Project (and evaluate SH) in parallel chunks.
   const size_t n = params.count;
@@ -458,6 +480,7 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
     }
   };
   run_parallel(m.pool, n, kProjectGrain, project);
+  clock.lap(kStageProject);
 
   // 2. Bin: count intersections per tile, scan, emit keys. The Gaussians are split into
   // contiguous ranges, counted and emitted in parallel (the tiles each Gaussian reaches were found
@@ -533,9 +556,18 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
   };
   run_parallel(m.pool, ranges, 1, emit);
   m.num_isects = size_t(total);
+  clock.lap(kStageBin);
+  StageTimes* const times = times_;
+  const bool count_pixels = times && times->count_splat_pixels;
+  if (times) {
+    m.sort_cpu_ns.store(0, std::memory_order_relaxed);
+    m.raster_cpu_ns.store(0, std::memory_order_relaxed);
+    m.splat_pixels.store(0, std::memory_order_relaxed);
+  }
 
   // 3. Per tile: sort by (depth, id), copy the records in that order, blend.
   auto raster = [&](size_t b, size_t e, int) {
+    uint64_t sort_ns = 0, raster_ns = 0, t0 = times ? platform::now_ns() : 0;  // two clock reads per tile
     for (size_t tile = b; tile < e; ++tile) {
       uint32_t begin, end;
       m.tile_range(int(tile), &begin, &end);
@@ -544,6 +576,7 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
         std::memcpy(m.splats + size_t(k) * simd::kSplatStride, m.records + size_t(uint32_t(m.keys[k])) * simd::kSplatStride,
                     sizeof(float) * simd::kSplatStride);
       const int tx = int(tile) % pp.tiles_x, ty = int(tile) / pp.tiles_x;
+      const uint64_t t1 = times ? platform::now_ns() : 0;
       if (options.fixed_point) {
         simd::QSplat* q = reinterpret_cast<simd::QSplat*>(m.splats + size_t(begin) * simd::kSplatStride);
         m.kernels->qraster_fwd_tile(&m.qrp, tx, ty, q, int32_t(end - begin), out_rgb, m.final_T, m.last,
@@ -552,9 +585,52 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
         m.kernels->raster_fwd_tile(&m.rp, tx, ty, m.splats + size_t(begin) * simd::kSplatStride,
                                    int32_t(end - begin), out_rgb, m.final_T, m.last, options.depth ? out_depth : nullptr);
       }
+      if (times) {
+        const uint64_t t2 = platform::now_ns();
+        sort_ns += t1 - t0;
+        raster_ns += t2 - t1;
+        t0 = t2;
+      }
+    }
+    if (times) {
+      m.sort_cpu_ns.fetch_add(sort_ns, std::memory_order_relaxed);
+      m.raster_cpu_ns.fetch_add(raster_ns, std::memory_order_relaxed);
     }
   };
+  const uint64_t pass0 = times ? platform::now_ns() : 0;
   run_parallel(m.pool, size_t(m.tiles), 1, raster);
+  if (times) {
+    // The tile pass interleaves sorting and blending on every thread: its wall time is split in
+    // the ratio of their summed CPU times.
+    const uint64_t pass = platform::now_ns() - pass0;
+    const uint64_t sort_cpu = m.sort_cpu_ns.load(), raster_cpu = m.raster_cpu_ns.load();
+    const uint64_t sort_share =
+        sort_cpu + raster_cpu > 0 ? uint64_t(double(pass) * double(sort_cpu) / double(sort_cpu + raster_cpu)) : 0;
+    times->add(kStageSortCopy, sort_share);
+    times->add(kStageRasterFwd, pass - sort_share);
+    times->projected += visible;
+    times->isects += total;
+    times->pixels += uint64_t(W) * uint64_t(H);
+    if (count_pixels) {
+      // Outside the stages: its wall time is the profile's overhead, which StageTimes keeps apart.
+      const uint64_t c0 = platform::now_ns();
+      auto count_support = [&](size_t b, size_t e, int) {
+        uint64_t pixels = 0;
+        for (size_t tile = b; tile < e; ++tile) {
+          uint32_t begin, end;
+          m.tile_range(int(tile), &begin, &end);
+          const int x0 = int(tile) % pp.tiles_x * simd::kTileSize, y0 = int(tile) / pp.tiles_x * simd::kTileSize;
+          const int w = std::min(simd::kTileSize, W - x0), h = std::min(simd::kTileSize, H - y0);
+          for (uint32_t k = begin; k < end; ++k)
+            pixels += support_pixels_in_tile(m.splats + size_t(k) * simd::kSplatStride, x0, y0, w, h);
+        }
+        m.splat_pixels.fetch_add(pixels, std::memory_order_relaxed);
+      };
+      run_parallel(m.pool, size_t(m.tiles), 16, count_support);
+      times->splat_pixels += m.splat_pixels.load();
+      times->overhead_ns += platform::now_ns() - c0;
+    }
+  }
   m.forward_ok = !options.fixed_point;
   return Status::Ok();
 }
@@ -567,6 +643,7 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
   const GaussianParams& params = m.params;
   const size_t n = params.count;
   const simd::ProjectParams& pp = m.pp;
+  StageClock clock(times_);
 
   // 1. Per tile: blend backward into per-intersection gradients.
   auto raster = [&](size_t b, size_t e, int) {
@@ -579,6 +656,7 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
     }
   };
   run_parallel(m.pool, size_t(m.tiles), 1, raster);
+  clock.lap(kStageRasterBwd);
 
   // 2. Reduce intersections to Gaussians in a fixed order (tile-major), so results are reproducible.
   std::fill(m.acc_means2d, m.acc_means2d + 2 * n, 0.0f);
@@ -598,6 +676,7 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
     m.acc_colors[3 * g + 1] += v[simd::kSplatG];
     m.acc_colors[3 * g + 2] += v[simd::kSplatBlue];
   }
+  clock.lap(kStageReduce);
 
   // 3. Projection backward in chunks; each chunk sums its own pose gradient, chunks are summed in order.
   float* v_means = grads->v_means ? grads->v_means : m.scratch_v_means;
@@ -632,6 +711,7 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
   }
   if (grads->v_opacities) std::memcpy(grads->v_opacities, m.acc_opacities, sizeof(float) * n);
   if (grads->v_means2d) std::memcpy(grads->v_means2d, m.acc_means2d, sizeof(float) * 2 * n);
+  clock.lap(kStageProjectBwd);
   return Status::Ok();
 }
 

@@ -23,6 +23,12 @@ Status write_psnr_files(const std::string& run, const std::vector<PsnrRow>& rows
   return platform::write_file_atomic((fs::path(run) / kPsnrSvg).string(), psnr_svg(rows, title));
 }
 
+nlohmann::json stage_ms_json(const Progress& p) {
+  nlohmann::json j = nlohmann::json::object();
+  for (int s = 0; s < kStageCount; ++s) j[stage_name(s)] = p.stage_ms_per_iteration(s);
+  return j;
+}
+
 Status save_progress_to(const std::string& path, const Progress& p) {
   nlohmann::json j;
   j["iteration"] = p.iteration;
@@ -37,6 +43,13 @@ Status save_progress_to(const std::string& path, const Progress& p) {
   j["iteration_ms"] = p.iteration_ms;
   j["losses"] = p.losses;
   j["skipped_steps"] = p.skipped_steps;
+  // Where the training time went: mean ms per iteration of each stage, and the sums a resumed run
+  // continues.
+  j["stage_ms_per_iteration"] = stage_ms_json(p);
+  nlohmann::json totals = nlohmann::json::object();
+  for (int s = 0; s < kStageCount; ++s) totals[stage_name(s)] = p.stage_ms[s];
+  j["stage_ms_total"] = std::move(totals);
+  j["stage_iterations"] = p.stage_iterations;
   return platform::write_file_atomic(path, j.dump() + "\n");
 }
 
@@ -59,6 +72,10 @@ Progress load_progress(const std::string& run, int at, const std::function<void(
   if (p.iteration_ms.size() > size_t(at)) p.iteration_ms.resize(size_t(at));
   p.losses = j.value("losses", std::vector<float>());
   p.skipped_steps = j.value("skipped_steps", 0);
+  const nlohmann::json totals = j.value("stage_ms_total", nlohmann::json::object());
+  p.stage_iterations = totals.is_object() ? j.value("stage_iterations", 0) : 0;
+  for (int s = 0; s < kStageCount && p.stage_iterations > 0; ++s)
+    p.stage_ms[s] = totals.contains(stage_name(s)) && totals[stage_name(s)].is_number() ? totals[stage_name(s)].get<double>() : 0.0;
   if (p.losses.size() > size_t(at)) p.losses.resize(size_t(at));
   if (saved != at) {
     const double ms = median(std::vector<double>(p.iteration_ms.begin(), p.iteration_ms.end()));

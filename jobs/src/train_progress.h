@@ -7,6 +7,9 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
+#include "gs/stage_times.h"
 #include "gs/status.h"
 #include "psnr_plot.h"
 
@@ -21,7 +24,16 @@ struct Progress {
   std::vector<float> iteration_ms;  // one per iteration, in order
   std::vector<float> losses;        // the training loss of every iteration, in order
   int skipped_steps = 0;            // steps the numerical guard skipped (non-finite loss or gradient)
+  // Wall ms of each training stage (gs/stage_times.h) summed over stage_iterations timed steps
+  // (every step of the run; a resumed run continues the sums).
+  double stage_ms[kStageCount] = {};
+  int stage_iterations = 0;
+  // Mean ms per iteration of a stage (0 before any step).
+  double stage_ms_per_iteration(int s) const { return stage_iterations > 0 ? stage_ms[s] / stage_iterations : 0.0; }
 };
+
+// {stage name: mean ms per iteration} of a run's steps (progress.json, results.json).
+nlohmann::json stage_ms_json(const Progress& p);
 
 Status save_progress_to(const std::string& path, const Progress& p);
 // Progress at checkpoint iteration `at`. progress.json is written right after checkpoint.bin, so a

@@ -131,6 +131,7 @@ class TrainRun {
   std::unique_ptr<metrics::LpipsAlex> lpips_;
   std::string title_, dataset_abs_, model_options_, model_path_;
   Progress prog_;
+  StageTimes stage_times_;  // the current step's stages (reset after each step, summed into prog_)
   int resumed_from_ = -1, last_full_ = -1;
   bool have_test_ = false;
   model::EvalResult final_eval_;
@@ -340,6 +341,7 @@ nlohmann::json TrainRun::eval_extra(int it, const model::EvalResult& r) const {
           {"train_seconds", prog_.train_seconds},
           {"train_cpu_seconds", prog_.train_cpu_seconds},
           {"median_iteration_ms", median(std::vector<double>(prog_.iteration_ms.begin(), prog_.iteration_ms.end()))},
+          {"stage_ms_per_iteration", stage_ms_json(prog_)},
           {"model_bytes", m.file_bytes()},
           {"model_file_bytes", m.file_bytes()},  // what model.hbgs holds once this iteration is committed
           {"anchors", m.anchor_count},
@@ -432,6 +434,9 @@ Status TrainRun::train() {
       return Status::Ok();
     }
   }
+  // Stage timers stay on: about a thousand clock reads per step (two per tile of the forward tile
+  // pass, a few per stage), well under 0.1 % of an iteration (docs/MODEL.md).
+  trainer_->set_stage_times(&stage_times_);
   for (int it = trainer_->iteration() + 1; it <= a_.iterations; ++it) {
     model::IterationStats stats;
     const double t0 = clock(), c0 = platform::process_cpu_seconds();
@@ -441,6 +446,9 @@ Status TrainRun::train() {
     prog_.train_cpu_seconds += platform::process_cpu_seconds() - c0;
     prog_.iteration_ms.push_back(float(1e3 * dt));
     prog_.losses.push_back(float(stats.step.loss));
+    for (int s = 0; s < kStageCount; ++s) prog_.stage_ms[s] += 1e-6 * double(stage_times_.ns[s]);
+    prog_.stage_iterations += int(stage_times_.iterations);
+    stage_times_.reset();
     if (stats.skipped_nonfinite) {
       ++prog_.skipped_steps;
       note("iteration " + std::to_string(it) + ": the loss or a gradient was NaN or infinite; the step was skipped (" +
@@ -528,6 +536,7 @@ void TrainRun::summarise(TrainRunSummary* summary) const {
   s.skipped_steps = prog_.skipped_steps;
   s.time_budget = a_.time_budget;
   s.schedule_progress = trainer_->schedule_progress();
+  for (int st = 0; st < kStageCount; ++st) s.stage_ms_per_iteration[st] = prog_.stage_ms_per_iteration(st);
   s.anchors = trainer_->model().anchor_count;
   s.train_views = d_->train_views.size();
   s.test_views = d_->test_views.size();

@@ -33,9 +33,11 @@
 #include "gs/model/hybrid_model.h"
 #include "gs/model/trainer.h"
 #include "gs/optim/schedule.h"
+#include "gs/platform/clock.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
 #include "gs/render.h"
+#include "gs/stage_times.h"
 #include "support/alloc_counter.h"
 #include "support/model_fixtures.h"
 #include "support/reduced.h"
@@ -141,8 +143,9 @@ TEST_CASE("trainer: the loss falls over 200 iterations") {
   CHECK(t->planned_bytes() > 0);
 }
 
-void check_allocation_free(platform::ThreadPool* pool) {
+void check_allocation_free(platform::ThreadPool* pool, StageTimes* profile = nullptr) {
   auto t = make_trainer(initial_model(config()), busy_options(100), pool);
+  t->set_stage_times(profile);
   IterationStats st;
   for (int i = 0; i < 20; ++i) REQUIRE(t->step(&st).ok());
   const size_t anchors_before = t->model().anchor_count;
@@ -159,7 +162,8 @@ void check_allocation_free(platform::ThreadPool* pool) {
     }
     allocations = scope.count();
   }
-  MESSAGE(std::string(pool ? "2 threads" : "no pool") << ": " << allocations << " allocations over iterations 21-40 (" << adjusted
+  const std::string label = std::string(pool ? "2 threads" : "no pool") + (profile ? ", profiled" : "");
+  MESSAGE(label << ": " << allocations << " allocations over iterations 21-40 (" << adjusted
                                            << " with anchor adjustment, anchors " << anchors_before << " -> "
                                            << t->model().anchor_count << ")");
   CHECK(allocations == 0);
@@ -170,6 +174,67 @@ TEST_CASE("trainer: step allocates nothing after warm-up including densification
   check_allocation_free(nullptr);
   platform::ThreadPool pool(2);
   check_allocation_free(&pool);
+  StageTimes times(/*count_pixels=*/true);  // the stage timers and the profile's counting too
+  check_allocation_free(&pool, &times);
+  CHECK(times.iterations == 40);
+}
+
+TEST_CASE("trainer: stage times are filled, sum to the iteration time, change nothing, and stay untouched when off") {
+  platform::ThreadPool pool(2);
+  const TrainOptions o = busy_options(30);  // statistics, anchor adjustment and feature refresh all run
+  auto plain = make_trainer(initial_model(config()), o, &pool);
+  auto profiled = make_trainer(initial_model(config()), o, &pool);
+  StageTimes times(/*count_pixels=*/true);
+  profiled->set_stage_times(&times);
+  IterationStats a, b;
+  uint64_t wall_outside = 0;
+  for (int i = 0; i < 30; ++i) {
+    REQUIRE(plain->step(&a).ok());
+    const uint64_t t0 = platform::now_ns();
+    REQUIRE(profiled->step(&b).ok());
+    wall_outside += platform::now_ns() - t0;
+    REQUIRE(a.step.loss == b.step.loss);  // timing changes no result
+  }
+  CHECK(times.iterations == 30);
+  CHECK(times.wall_ns > 0);
+  CHECK(times.wall_ns <= wall_outside);
+  uint64_t named = 0, all = 0;
+  for (int s = 0; s < kStageCount; ++s) {
+    CAPTURE(stage_name(s));
+    all += times.ns[s];
+    if (s != kStageOther) named += times.ns[s];
+    // Every stage ran in these 30 iterations (stats from 6, adjustment at 15-30, refresh at 7-28).
+    CHECK(times.ns[s] > 0);
+  }
+  CHECK(named + times.overhead_ns <= times.wall_ns);
+  CHECK(all + times.overhead_ns == times.wall_ns);  // other is exactly the remainder
+  CHECK(times.stats_steps == 25);                   // iterations 6-30
+  CHECK(times.adjust_steps == 4);                   // 15, 20, 25, 30
+  CHECK(times.refresh_steps >= 4);                  // 7, 14, 21, 28 (and after registration passes)
+  CHECK(times.visible_anchors > 0);
+  CHECK(times.visible_anchors <= times.anchors);
+  CHECK(times.gaussians > 0);
+  CHECK(times.projected <= times.gaussians);
+  CHECK(times.isects > 0);
+  CHECK(times.splat_pixels > 0);
+  CHECK(times.adam_floats > 0);
+  // Coarse iterations (1-21) render at half size, the rest at full.
+  CHECK(times.pixels == uint64_t(21) * (kSceneW / 2) * (kSceneH / 2) + uint64_t(9) * kSceneW * kSceneH);
+
+  // Renders between steps and steps after profiling is turned off leave the figures alone.
+  const StageTimes before = times;
+  std::vector<float> rgb(size_t(kSceneW) * kSceneH * 3);
+  const float bg[3] = {0, 0, 0};
+  REQUIRE(profiled->render(scene().views[0].camera, bg, rgb.data()).ok());
+  profiled->set_stage_times(nullptr);
+  REQUIRE(profiled->step(&b).ok());
+  CHECK(std::equal(std::begin(before.ns), std::end(before.ns), std::begin(times.ns)));
+  CHECK(before.wall_ns == times.wall_ns);
+  CHECK(before.iterations == times.iterations);
+  CHECK(before.gaussians == times.gaussians);
+  CHECK(before.isects == times.isects);
+  CHECK(before.pixels == times.pixels);
+  CHECK(before.splat_pixels == times.splat_pixels);
 }
 
 void check_budget(size_t max_anchors, size_t max_gaussians) {

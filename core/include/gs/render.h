@@ -22,6 +22,8 @@ namespace gs::platform { class ThreadPool; }
 
 namespace gs {
 
+struct StageTimes;  // gs/stage_times.h
+
 // Non-owning view of the Gaussians to render. Exactly one of colors / sh is used.
 struct GaussianParams {
   size_t count = 0;
@@ -160,6 +162,10 @@ class Renderer {
                                PoseNormalEquations* out, float* out_jacobian = nullptr);
 
   const RenderStats& stats() const { return stats_; }
+  // Profiling: forward() and backward() add their stages' wall time (projection, binning, sort +
+  // copy, raster forward / backward, reduce, projection backward) and counts to *times; null (the
+  // default) turns it off at the cost of one branch per stage.
+  void set_stage_times(StageTimes* times) { times_ = times; }
   // Per-pixel state of the last forward: final transmittance and 1 + index of the last contributor
   // within the pixel's tile list; per-Gaussian radius in px (0 = culled).
   const float* final_transmittance() const;
@@ -174,6 +180,7 @@ class Renderer {
   Impl* impl_;
   RenderCapacity capacity_;
   RenderStats stats_;
+  StageTimes* times_ = nullptr;
 };
 
 // Validates a Gaussian set: sizes, and every parameter finite; opacities in [0, 1]; quaternions

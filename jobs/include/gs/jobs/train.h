@@ -194,6 +194,9 @@ struct TrainRunSummary {
   int skipped_steps = 0;  // steps skipped by the numerical guard (non-finite loss or gradient)
   double time_budget = 0;        // the run's time budget in seconds (0: none)
   double schedule_progress = 0;  // fraction of the learning-rate schedules reached (model::Trainer::schedule_progress)
+  // Mean wall ms per iteration of each training stage (gs/stage_times.h: index by Stage), over the
+  // run's steps; progress.json holds the same as "stage_ms_per_iteration".
+  double stage_ms_per_iteration[kStageCount] = {};
   size_t anchors = 0, train_views = 0, test_views = 0;
   uint64_t model_bytes = 0, model_file_bytes = 0;
   pose::PoseErrors train_pose_input, train_pose_final;  // Sim(3)-aligned, against the true poses

@@ -27,6 +27,7 @@
 #include "gs/model/hybrid_model.h"
 #include "gs/render.h"
 #include "gs/simd/loss.h"
+#include "gs/stage_times.h"
 #include "gs/status.h"
 
 namespace gs::model {
@@ -86,6 +87,9 @@ struct StepWorkspace : NeuralGaussianBuffers<T> {
   std::vector<T> v_means, v_log_scales, v_quats, v_opacities, v_colors, v_means2d, v_ls_volume;
   std::vector<T> rgb, v_rgb;                          // [H, W, 3]
   size_t capacity = 0;
+  // Profiling: when set, decode_view and step_forward_backward add each stage's wall time here
+  // (gs/stage_times.h; the renderer's stages are the backend's). Null: one branch per stage.
+  StageTimes* stage_times = nullptr;
 
   // gradients = false: the forward buffers only (rendering and registration decode but never
   // differentiate the decoder), about 40 % of the bytes.
@@ -124,20 +128,27 @@ size_t decode_view(Backend& be, const ModelParamsT<T>& p, const Camera& cam, Ste
   const AnchorParams<T>& a = p.anchors;
   const int G = p.image_feature_dim;
   const simd::MlpShape* sh = p.shapes;
+  StageClock clock(ws.stage_times);
   const size_t V = select_visible_anchors(cam, a, ws.rows.data());
+  clock.lap(kStageAnchorSelect);
   const uint32_t* rows = ws.rows.data();
   if (G > 0) {
     for (size_t v = 0; v < V; ++v)
       std::copy(p.image_raw + size_t(rows[v]) * kImageRawDim, p.image_raw + (size_t(rows[v]) + 1) * kImageRawDim,
                 ws.raw.data() + v * kImageRawDim);
     be.mlp_fwd(sh[kMlpImage], int32_t(V), ws.raw.data(), p.mlp[kMlpImage], ws.img_hidden.data(), ws.g.data());
+    clock.lap(kStageImageMlpFwd);
   }
   double centre[3];
   camera_centre(cam.pose, centre);
   build_decoder_input(a, rows, V, G > 0 ? ws.g.data() : static_cast<const T*>(nullptr), G, centre, ws.X.data());
+  clock.lap(kStageDecoderInput);
   for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden[m].data(), ws.y[m].data());
+  clock.lap(kStageDecoderMlpFwd);
   *visible = V;
-  return decode_fwd(a, rows, V, ws.y[kMlpOpacity].data(), ws.y[kMlpCov].data(), ws.y[kMlpColor].data(), &ws.ng);
+  const size_t N = decode_fwd(a, rows, V, ws.y[kMlpOpacity].data(), ws.y[kMlpCov].data(), ws.y[kMlpColor].data(), &ws.ng);
+  clock.lap(kStageDecodeFwd);
+  return N;
 }
 
 // Runs the graph forward and, if grads != nullptr, backward. target: [H, W, 3] in [0, 1].
@@ -156,6 +167,7 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   const size_t N = decode_view(be, p, cam, ws, &V);
   const uint32_t* rows = ws.rows.data();
   GS_RETURN_IF_ERROR(be.render_fwd(cam, ws.ng, ws.rgb.data()));
+  StageClock clock(ws.stage_times);  // after the renderer's own stages
   double l1 = 0, ssim = 0;
   be.loss_bwd(W, H, ws.rgb.data(), target, ws.v_rgb.data(), &l1, &ssim);
   out->l1 = l1;
@@ -165,19 +177,23 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   std::fill(ws.v_ls_volume.begin(), ws.v_ls_volume.begin() + std::ptrdiff_t(3 * N), T(0));
   out->volume = volume_fwd_bwd(N, ws.log_scales.data(), cfg.volume_weight, ws.v_ls_volume.data());
   out->loss = (1 - cfg.ssim_lambda) * l1 + cfg.ssim_lambda * (1 - ssim) + out->volume;
+  clock.lap(kStageLoss);
   if (!grads) return Status::Ok();
 
   // Backward through the renderer (the volume term adds to its log-scale gradient).
   double v_pose[6] = {0, 0, 0, 0, 0, 0};
   GS_RETURN_IF_ERROR(be.render_bwd(ws.v_rgb.data(), ws.v_means.data(), ws.v_log_scales.data(), ws.v_quats.data(),
                                    ws.v_opacities.data(), ws.v_colors.data(), ws.v_means2d.data(), v_pose));
+  clock.restart();
   for (size_t i = 0; i < 3 * N; ++i) ws.v_log_scales[i] += ws.v_ls_volume[i];
+  clock.lap(kStageLoss);
 
   // Decode backward: MLP output gradients and the anchor offset / log-scale gradients.
   const GaussianGradsT<T> gg{ws.v_means.data(), ws.v_log_scales.data(), ws.v_quats.data(), ws.v_opacities.data(),
                              ws.v_colors.data()};
   decode_bwd(a, rows, V, ws.y[kMlpCov].data(), ws.ng, gg, ws.v_y[kMlpOpacity].data(), ws.v_y[kMlpCov].data(),
              ws.v_y[kMlpColor].data(), grads->offsets, grads->log_scales);
+  clock.lap(kStageDecodeBwd);
 
   // Decoder MLPs: weight gradients accumulate; input gradients sum over the three.
   for (int m = 0; m < 3; ++m) {
@@ -187,6 +203,7 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
     if (m > 0)
       for (size_t i = 0; i < V * D; ++i) ws.v_X[i] += ws.v_x_tmp[i];
   }
+  clock.lap(kStageMlpBwd);
 
   // The pose: the rasteriser's twist plus the view-direction / distance inputs through the centre.
   if (grads->pose) {
@@ -195,6 +212,7 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
     decoder_input_centre_bwd(a, rows, V, G, centre, ws.v_X.data(), v_centre);
     centre_grad_to_pose(cam.pose, v_centre, v_pose);
     for (int i = 0; i < 6; ++i) grads->pose[i] += v_pose[i];
+    clock.lap(kStageDecodeBwd);  // the decoder input's camera-centre gradient
   }
   // Anchor features and the image-feature MLP.
   if (grads->features)
@@ -209,6 +227,7 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
     be.mlp_bwd(sh[kMlpImage], int32_t(V), ws.raw.data(), p.mlp[kMlpImage], ws.img_hidden.data(), ws.g.data(),
                ws.v_g.data(), static_cast<T*>(nullptr), grads->mlp[kMlpImage]);
   }
+  clock.lap(kStageMlpBwd);
   return Status::Ok();
 }
 

@@ -158,6 +158,11 @@ class Trainer {
   // Bytes allocated at create() (model capacity, optimiser, workspace, renderer arena).
   uint64_t planned_bytes() const;
 
+  // Profiling: every later step() adds its stages' wall time and counts to *times (gs/stage_times.h;
+  // StageTimes::finish_iteration per step); render() never does. Null (the default) turns it off:
+  // a branch per stage, no clock read, no allocation.
+  void set_stage_times(StageTimes* times);
+
   // Renders the current model for a camera with the trainer's own pipeline (forward only; the next
   // step() is unaffected): evaluation during training without a second renderer. rgb [H, W, 3];
   // gaussians and alpha [H, W] optional. Fails when the image is larger than the training views.
