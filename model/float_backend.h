@@ -123,6 +123,8 @@ class FloatBackend {
     return st;
   }
   int replans() const { return replans_; }
+  // The pool the step graph's own loops (decode, gradient scatter) run on (null: the calling thread).
+  platform::ThreadPool* pool() const { return pool_; }
 
   // The on-device decode: MLPs whose float parameters are keys[id] run as int8 (qmlp_fwd) with the
   // scratch planned for `rows` rows; null turns it off. The outputs are the float path's (final
