@@ -499,8 +499,6 @@ TEST_CASE("decode: visibility pre-filter excludes anchors behind and outside and
   visibility_cases(rot);
 }
 
-}  // namespace
-}  // namespace gs::model
 
 // The step graph runs decoding in ranges of visible anchors (in parallel) and joins them in order:
 // every split must give the one-pass results exactly.
@@ -577,3 +575,6 @@ TEST_CASE("decode: ranges of visible anchors joined in order equal one pass forw
   }
   CHECK(joined == all);
 }
+
+}  // namespace
+}  // namespace gs::model
