@@ -2,8 +2,10 @@
 // The trainer's checkpoint file (Trainer::save_checkpoint / load_checkpoint, gs/model/trainer.h):
 // magic "HBGSCKPT", version, the model, every Adam moment, the densification statistics, the
 // iteration, generator and view order, the training poses with their Adam state and the held-back
-// views, then an FNV-1a 64 checksum. Versions 2 and 3 are read.
+// views, the re-targeted schedule of a run whose length changed (Trainer::retarget), then an FNV-1a
+// 64 checksum. Versions 2 to 4 are read.
 #include <algorithm>
+#include <array>
 #include <cstring>
 #include <string>
 
@@ -15,7 +17,17 @@ namespace gs::model {
 namespace {
 
 constexpr char kCheckpointMagic[8] = {'H', 'B', 'G', 'S', 'C', 'K', 'P', 'T'};
-constexpr uint32_t kCheckpointVersion = 3;  // 2: training poses and their Adam state; 3: held-back views
+// 2: training poses and their Adam state; 3: held-back views; 4: the re-targeted schedule.
+constexpr uint32_t kCheckpointVersion = 4;
+
+// The schedule fields Trainer::retarget changes, in the order the checkpoint stores them.
+template <class Opt>
+auto schedule_fields(Opt& o) {
+  return std::array<decltype(&o.iterations), 12>{&o.iterations, &o.schedule_iterations, &o.stat_start, &o.update_from,
+                                                 &o.update_interval, &o.update_until, &o.pose_warmup, &o.pose_register_every,
+                                                 &o.pose_register_until, &o.held_back_register_every,
+                                                 &o.held_back_register_from, &o.held_back_register_until};
+}
 
 }  // namespace
 
@@ -53,6 +65,12 @@ Status Trainer::save_checkpoint(const std::string& path) const {
     }
   }
   for (uint8_t h : d.held) w.u8(h);
+  w.u8(d.retargeted ? 1 : 0);
+  if (d.retargeted) {
+    for (const int* f : schedule_fields(d.opt)) w.i32(*f);
+    w.f64(d.lr_progress);
+    w.f64(d.coarse_end);
+  }
   w.u64(detail::fnv1a64(w.bytes.data(), w.bytes.size()));
   return platform::write_file_atomic(path, w.bytes.data(), w.bytes.size());
 }
@@ -68,8 +86,8 @@ Status Trainer::load_checkpoint(const std::string& path) {
   if (std::memcmp(magic, kCheckpointMagic, 8) != 0) return parse_error(path + ": not an hbgs checkpoint");
   const uint32_t version = r.u32("the format version");
   if (!r.status().ok()) return r.status();
-  if (version != kCheckpointVersion && version != 2)
-    return unsupported(path + ": checkpoint format version " + std::to_string(version) + ", this hbgs reads versions 2 and " +
+  if (version > kCheckpointVersion || version < 2)
+    return unsupported(path + ": checkpoint format version " + std::to_string(version) + ", this hbgs reads versions 2 to " +
                        std::to_string(kCheckpointVersion) + (version == 1 ? " (version 1 predates pose optimisation; restart the run)" : ""));
   if (bytes.size() < 8 || detail::fnv1a64(bytes.data(), bytes.size() - 8) != bytes::load_u64(bytes.data() + bytes.size() - 8))
     return parse_error(path + ": checksum mismatch (the checkpoint is truncated or corrupt)");
@@ -140,8 +158,31 @@ Status Trainer::load_checkpoint(const std::string& path) {
       h = r.u8("held-back views");
       if (r.status().ok() && h > 1) return parse_error(path + ": bad held-back flag");
     }
+  TrainOptions schedule = d.opt;  // version 3 and before, or never re-targeted: the options as created
+  bool retargeted = false;
+  double lr_progress = 0, coarse_end = d.coarse_end;
+  if (version >= 4) {
+    const uint8_t flag = r.u8("the schedule flag");
+    if (r.status().ok() && flag > 1) return parse_error(path + ": bad schedule flag");
+    retargeted = flag == 1;
+    if (retargeted) {
+      for (int* f : schedule_fields(schedule)) *f = r.i32("the schedule");
+      lr_progress = r.f64("the schedule");
+      coarse_end = r.f64("the schedule");
+      if (r.status().ok() && (schedule.schedule_iterations < 1 || schedule.update_interval < 1 || schedule.iterations < 0 ||
+                              schedule.pose_warmup < 0 || schedule.pose_register_every < 0 || schedule.held_back_register_every < 0 ||
+                              !(lr_progress >= 0 && lr_progress <= 1) || !(coarse_end >= 0)))
+        return parse_error(path + ": bad schedule");
+    }
+  }
   if (!r.status().ok()) return r.status();
   if (std::find(held.begin(), held.end(), uint8_t(0)) == held.end()) return parse_error(path + ": every view is held back");
+  if (retargeted) {
+    for (size_t i = 0; i < schedule_fields(d.opt).size(); ++i) *schedule_fields(d.opt)[i] = *schedule_fields(schedule)[i];
+    d.lr_progress = lr_progress;
+    d.coarse_end = coarse_end;
+    d.retargeted = true;
+  }
   d.held = held;
   d.iteration = iteration;
   d.rng.state = rng_state;

@@ -90,6 +90,7 @@ Status Trainer::Impl::plan(const TrainOptions& options) {
   grad_denom.resize(c * K, 0);
   existing_cells.resize(c, detail::CellKey{0, 0, 0});
   cand.resize(c * K, {detail::CellKey{0, 0, 0}, 0u});
+  cell_scores.resize(c * K, {0.0f, 0u});
   pruned.resize(c, 0);
   uint64_t bytes = Renderer::plan_bytes(*rc);
   registrar.reset();
@@ -108,7 +109,7 @@ Status Trainer::Impl::plan(const TrainOptions& options) {
                     model.image_raw.size()) * 4;
   for (const detail::ParamGroup& g : groups) bytes += uint64_t(g.grad.size() * 3) * 4;
   bytes += uint64_t(ws.X.size() * 3 + ws.means.size() * 4 + ws.quats.size() * 2 + ws.rgb.size() * 2) * 4;
-  bytes += uint64_t(c * K) * (4 + 4 + sizeof(cand[0]));
+  bytes += uint64_t(c * K) * (4 + 4 + sizeof(cand[0]) + sizeof(cell_scores[0]));
   planned_bytes = bytes;
   return Status::Ok();
 }
@@ -229,7 +230,6 @@ void Trainer::Impl::load_target(const io::DatasetView& v, int s, const float bg[
 
 int Trainer::Impl::downscale_at(int it) const {
   if (opt.coarse_levels <= 0) return 1;
-  const double coarse_end = opt.coarse_fraction * double(opt.iterations);
   if (double(it) > coarse_end) return 1;
   const int level = std::min(opt.coarse_levels - 1, int(double(it - 1) * opt.coarse_levels / std::max(coarse_end, 1.0)));
   return 1 << (opt.coarse_levels - level);
@@ -253,9 +253,9 @@ Status Trainer::Impl::register_all(int it, int* moved) {
 
 void Trainer::Impl::pose_adam(size_t vi, const double g[6], int it) {
   const double warm = optim::warmup(opt.pose_warmup, it);
-  const double lr_rot = warm * optim::expon_lr(opt.lr_pose_rotation_init, opt.lr_pose_rotation_final, opt.schedule_iterations, it);
+  const double lr_rot = warm * optim::expon_lr_at(opt.lr_pose_rotation_init, opt.lr_pose_rotation_final, lr_progress);
   const double lr_tr = warm * model.scene_extent *
-                       optim::expon_lr(opt.lr_pose_translation_init, opt.lr_pose_translation_final, opt.schedule_iterations, it);
+                       optim::expon_lr_at(opt.lr_pose_translation_init, opt.lr_pose_translation_final, lr_progress);
   const int step = ++pose_steps[vi];
   double xi[6];
   optim::twist_adam_step(g, lr_tr, lr_rot, step, opt.adam_eps, &pose_m[6 * vi], &pose_v[6 * vi], xi);
@@ -265,7 +265,7 @@ void Trainer::Impl::pose_adam(size_t vi, const double g[6], int it) {
 void Trainer::Impl::adam_all(int it) {
   const size_t M = model.anchor_count;
   for (detail::ParamGroup& g : groups) {
-    const simd::AdamParams ap = optim::adam_params(optim::expon_lr(g.lr0, g.lr1, opt.schedule_iterations, it), it, opt.adam_eps);
+    const simd::AdamParams ap = optim::adam_params(optim::expon_lr_at(g.lr0, g.lr1, lr_progress), it, opt.adam_eps);
     optim::adam_step(*kernels, pool, ap, g.live(M), g.param, g.grad.data(), g.m.data(), g.v.data());
   }
 }
@@ -336,6 +336,7 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   d.view_order.assign(train_views.size(), 0);
   d.view_pos = d.view_order.size();  // first call shuffles
   d.held = options.held_back_views.empty() ? std::vector<uint8_t>(train_views.size(), 0) : options.held_back_views;
+  d.coarse_end = options.coarse_fraction * double(options.iterations);
   for (uint8_t& h : d.held) h = h ? 1 : 0;
   GS_RETURN_IF_ERROR(d.plan(options));
   if (d.paper()) d.refresh_image_features();
@@ -346,6 +347,9 @@ Status Trainer::step(IterationStats* stats) {
   Impl& d = *impl_;
   const double t0 = platform::now_seconds();
   const int it = d.iteration + 1;
+  // it / schedule_iterations (at most 1), as expon_lr computes it; after a retarget never below the
+  // last step's.
+  d.lr_progress = std::max(d.lr_progress, std::min(1.0, double(it) / double(std::max(d.opt.schedule_iterations, 1))));
   const int vi = d.next_view();
   const io::DatasetView& view = *d.views[size_t(vi)];
   const int scale = d.downscale_at(it);
@@ -367,6 +371,7 @@ Status Trainer::step(IterationStats* stats) {
   StepResult res;
   GS_RETURN_IF_ERROR(step_forward_backward(d.backend, p, cam, d.target.data(), d.opt.step, d.ws, &grads, &res));
   d.last_visible = res.visible_anchors;
+  d.last_gaussians = res.gaussians;
   if (!d.opt.test_nonfinite_iterations.empty() &&
       std::find(d.opt.test_nonfinite_iterations.begin(), d.opt.test_nonfinite_iterations.end(), it) != d.opt.test_nonfinite_iterations.end())
     d.groups.front().grad[0] = std::numeric_limits<float>::quiet_NaN();
@@ -425,6 +430,61 @@ Status Trainer::step(IterationStats* stats) {
   }
   return Status::Ok();
 }
+
+namespace {
+
+// A window [*from, *until] of the schedule moved to [from, until] at completed iteration it: one
+// that has closed (it >= *until) stays closed, one that has started (it > *from) keeps its start.
+void move_window(int it, int from, int until, int* cur_from, int* cur_until) {
+  if (it >= *cur_until) return;
+  if (it <= *cur_from) *cur_from = from;
+  *cur_until = until;
+}
+
+}  // namespace
+
+Status Trainer::retarget(const TrainOptions& s) {
+  Impl& d = *impl_;
+  if (s.iterations < 0 || s.schedule_iterations < 1 || s.update_interval < 1 || s.pose_warmup < 0 || s.pose_register_every < 0 ||
+      s.held_back_register_every < 0)
+    return invalid_argument("trainer: retarget: iteration counts and intervals must be positive");
+  TrainOptions& o = d.opt;
+  const int it = d.iteration;
+  o.iterations = s.iterations;
+  o.schedule_iterations = s.schedule_iterations;
+  // Statistics and growth share update_until: both windows close together.
+  int stat_until = o.update_until;
+  move_window(it, s.stat_start, s.update_until, &o.stat_start, &stat_until);
+  move_window(it, s.update_from, s.update_until, &o.update_from, &o.update_until);
+  if (it < o.update_until) o.update_interval = s.update_interval;
+  // The warm-up factor min(1, it / pose_warmup) must not fall: once begun, the ramp only steepens.
+  o.pose_warmup = it > 0 ? std::min(o.pose_warmup, s.pose_warmup) : s.pose_warmup;
+  if (o.pose_register_every > 0 && s.pose_register_every > 0) {
+    int from = 0;
+    move_window(it, 0, s.pose_register_until, &from, &o.pose_register_until);
+    if (it < o.pose_register_until) o.pose_register_every = s.pose_register_every;
+  }
+  if (o.held_back_register_every > 0 && s.held_back_register_every > 0) {
+    move_window(it, s.held_back_register_from, s.held_back_register_until, &o.held_back_register_from, &o.held_back_register_until);
+    if (it < o.held_back_register_until) o.held_back_register_every = s.held_back_register_every;
+  }
+  // Coarse to fine: a finished coarse phase stays finished, and the level reached at `it` is kept
+  // (a later end would make the current level coarser again).
+  if (o.coarse_levels > 0 && double(it) <= d.coarse_end) {
+    double end = o.coarse_fraction * double(s.iterations);
+    const int L = o.coarse_levels;
+    const int level = it > 0 ? std::min(L - 1, int(double(it - 1) * L / std::max(d.coarse_end, 1.0))) : 0;
+    if (level > 0) {
+      end = std::min(end, double(it - 1) * L / level);
+      while (end > 0 && int(double(it - 1) * L / end) < level) end = std::nextafter(end, 0.0);  // rounding
+    }
+    d.coarse_end = end;
+  }
+  d.retargeted = true;
+  return Status::Ok();
+}
+
+double Trainer::schedule_progress() const { return impl_->lr_progress; }
 
 int Trainer::iteration() const { return impl_->iteration; }
 const std::vector<Camera>& Trainer::cameras() const { return impl_->view_cameras; }

@@ -5,6 +5,7 @@
 // anchor budget (the rows grow through Trainer::Impl::ensure_capacity).
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 
 #include "trainer_state.h"
@@ -81,7 +82,29 @@ void Trainer::Impl::clear_row(size_t row) {
   }
 }
 
-size_t Trainer::Impl::grow_level(int level, double min_denom) {
+size_t Trainer::Impl::growth_allowance() const {
+  const size_t M = model.anchor_count;
+  if (!(opt.growth_gaussians_per_pixel > 0) || M == 0 || last_visible == 0 || last_gaussians == 0) return SIZE_MAX;
+  // Gaussians per view now: the anchors each training view sees (the decoder's visibility test)
+  // times the kept Gaussians per visible anchor of this step.
+  AnchorParams<float> a = params().anchors;
+  double visible = 0, pixels = 0;
+  size_t n = 0;
+  for (size_t v = 0; v < views.size(); ++v) {
+    if (held[v]) continue;
+    visible += double(select_visible_anchors(view_cameras[v], a, static_cast<uint32_t*>(nullptr)));
+    pixels += double(view_cameras[v].intr.width) * double(view_cameras[v].intr.height);
+    ++n;
+  }
+  if (n == 0 || !(visible > 0)) return SIZE_MAX;
+  const double per_view = double(last_gaussians) / double(last_visible) * visible / double(n);
+  const double target = opt.growth_gaussians_per_pixel * pixels / double(n);
+  if (per_view >= target) return 0;
+  // New anchors are seen by as many views as the present ones on average.
+  return size_t(std::min(double(budget()), (target / per_view - 1.0) * double(M)));
+}
+
+size_t Trainer::Impl::grow_level(int level, double min_denom, size_t allowance) {
   const ModelConfig& c = model.config;
   const size_t M = model.anchor_count, K = size_t(c.k);
   const double threshold = opt.densify_grad_threshold * std::pow(double(opt.update_hierarchy_factor / 2), level);
@@ -101,22 +124,44 @@ size_t Trainer::Impl::grow_level(int level, double min_denom) {
     const float mu[3] = {a[0] + o[0] * std::exp(ls[0]), a[1] + o[1] * std::exp(ls[1]), a[2] + o[2] * std::exp(ls[2])};
     cand[nc++] = {cell_of(mu, size), uint32_t(idx)};
   }
-  if (nc == 0) return 0;
+  if (nc == 0 || allowance == 0) return 0;
   // Room for every candidate cell (at most nc new anchors), within the budget.
-  if (Status st = ensure_capacity(std::min(budget(), M + nc)); !st.ok()) {
+  if (Status st = ensure_capacity(std::min(budget(), M + std::min(nc, allowance))); !st.ok()) {
     growth_status = st;
     return 0;
   }
   std::sort(cand.begin(), cand.begin() + std::ptrdiff_t(nc));
   for (size_t i = 0; i < M; ++i) existing_cells[i] = cell_of(&model.positions[3 * i], size);
   std::sort(existing_cells.begin(), existing_cells.begin() + std::ptrdiff_t(M));
+  // The new cells (not holding an anchor yet). Under an allowance smaller than their number, the
+  // cells whose candidates have the largest mean gradient win (ties: cell order).
+  auto mean_grad = [&](uint32_t idx) { return grad_accum[idx] / float(grad_denom[idx]); };
+  size_t cells = 0;
+  for (size_t b = 0; b < nc;) {
+    size_t e = b + 1;
+    float best = mean_grad(cand[b].second);
+    while (e < nc && cand[e].first == cand[b].first) best = std::max(best, mean_grad(cand[e++].second));
+    if (!std::binary_search(existing_cells.begin(), existing_cells.begin() + std::ptrdiff_t(M), cand[b].first))
+      cell_scores[cells++] = {-best, uint32_t(b)};
+    b = e;
+  }
+  float cut = 0;  // the last winner's (-mean gradient, first candidate); none: every cell wins
+  uint32_t cut_first = UINT32_MAX;
+  if (cells > allowance) {
+    std::nth_element(cell_scores.begin(), cell_scores.begin() + std::ptrdiff_t(allowance - 1),
+                     cell_scores.begin() + std::ptrdiff_t(cells));
+    cut = cell_scores[allowance - 1].first;
+    cut_first = cell_scores[allowance - 1].second;
+  }
   size_t added = 0;
   for (size_t b = 0; b < nc;) {
     size_t e = b + 1;
-    while (e < nc && cand[e].first == cand[b].first) ++e;
+    float best = mean_grad(cand[b].second);
+    while (e < nc && cand[e].first == cand[b].first) best = std::max(best, mean_grad(cand[e++].second));
     const detail::CellKey cell = cand[b].first;
     const bool taken = std::binary_search(existing_cells.begin(), existing_cells.begin() + std::ptrdiff_t(M), cell);
-    if (!taken && model.anchor_count < cap()) {
+    const bool wins = cut_first == UINT32_MAX || std::make_pair(-best, uint32_t(b)) <= std::make_pair(cut, cut_first);
+    if (!taken && wins && model.anchor_count < cap()) {
       const size_t row = model.anchor_count++;
       const float pos[3] = {float(double(cell.x) * size), float(double(cell.y) * size), float(double(cell.z) * size)};
       std::copy(pos, pos + 3, &model.positions[3 * row]);
@@ -143,9 +188,10 @@ void Trainer::Impl::adjust_anchors() {
   const double min_denom = opt.update_interval * opt.success_threshold * 0.5;
   const size_t M0 = model.anchor_count;
   size_t added = 0;
+  const size_t allowance = growth_allowance();
   for (int level = 0; level < opt.update_depth; ++level) {
     if (level > 0 && added == 0) break;  // deeper levels run only after a level added something
-    added += grow_level(level, min_denom);
+    added += grow_level(level, min_denom, allowance - std::min(allowance, added));
   }
   for (size_t idx = 0; idx < M0 * K; ++idx)
     if (grad_denom[idx] > min_denom) {

@@ -82,7 +82,15 @@ struct Trainer::Impl {
   int plan_w = 1, plan_h = 1;  // largest training view: what the pipeline is planned for
   Status growth_status;        // a failed growth (allocation) reported by step()
   int growths = 0;             // times the rows grew (each one allocation, at a densification step)
-  size_t last_visible = 0;
+  size_t last_visible = 0;    // visible anchors of the last step
+  size_t last_gaussians = 0;  // kept neural Gaussians of the last step
+  std::vector<std::pair<float, uint32_t>> cell_scores;  // [cap k] (-mean gradient, first candidate) per new cell
+  // The run's schedule as it goes (Trainer::retarget): the learning-rate progress fraction reached
+  // (never decreasing), the iteration where coarse to fine ends, and whether retarget was called
+  // (then the checkpoint records the schedule).
+  double lr_progress = 0;
+  double coarse_end = 0;
+  bool retargeted = false;
 
   size_t cap() const { return model.capacity(); }
   size_t budget() const { return model.config.anchor_capacity(); }
@@ -134,7 +142,8 @@ struct Trainer::Impl {
   // Clears a newly added anchor row's optimiser state and statistics.
   void clear_row(size_t row);
   // One growth level (Part B section 7 step 2); returns the number of anchors added.
-  size_t grow_level(int level, double min_denom);
+  size_t growth_allowance() const;
+  size_t grow_level(int level, double min_denom, size_t allowance);
   void adjust_anchors();
 };
 

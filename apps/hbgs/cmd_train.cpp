@@ -20,6 +20,8 @@
 namespace hbgs::cli {
 namespace {
 
+constexpr int kMaxIterations = 100000000;
+
 struct TrainCli {
   gs::jobs::TrainRunOptions options;
   bool quiet = false;
@@ -54,7 +56,7 @@ class ProgressPrinter {
         line(buf);
         return;
       }
-      case gs::jobs::TrainEvent::kIteration: iteration(*e.stats, e.iterations); return;
+      case gs::jobs::TrainEvent::kIteration: iteration(e); return;
     }
   }
   // Ends the in-place line before other output.
@@ -68,7 +70,12 @@ class ProgressPrinter {
     break_line();
     std::fprintf(stderr, "%s\n", text.c_str());
   }
-  void iteration(const gs::model::IterationStats& s, int total) {
+  // With a time budget the total is the current prediction ("~"), and the remaining time is the
+  // budget's.
+  void iteration(const gs::jobs::TrainEvent& e) {
+    const gs::model::IterationStats& s = *e.stats;
+    const int total = e.iterations;
+    const bool budget = e.budget_seconds > 0;
     if (s.poses_registered >= 0) line("it " + std::to_string(s.iteration) + ": registration pass moved " +
                                       std::to_string(s.poses_registered) + " poses");
     if (s.views_released > 0)
@@ -80,14 +87,17 @@ class ProgressPrinter {
     have_ = true;
     ++since_;
     const double now = gs::platform::now_seconds(), dt = now - last_;
-    const bool last = s.iteration == total;
+    const bool last = e.last;
     if (!(last || (tty_ ? (dt >= 1.0 || s.iteration % 50 == 0) : dt >= 5.0))) return;
     rate_ = since_ / std::max(dt, 1e-9);
     since_ = 0;
     last_ = now;
-    std::fprintf(stderr, "%sit %d/%d  loss %.4f  train PSNR %.2f  anchors %zu  Gaussians %zu  %.1f it/s  ETA %s%s",
-                 tty_ ? "\r\033[K" : "", s.iteration, total, ema_loss_, ema_psnr_, s.anchors, s.step.gaussians, rate_,
-                 clock_text((total - s.iteration) / rate_).c_str(), tty_ ? "" : "\n");
+    const std::string eta = budget ? "budget " + clock_text(e.budget_seconds) + ", " + clock_text(e.remaining_seconds) + " left"
+                                   : "ETA " + clock_text((total - s.iteration) / rate_);
+    const std::string of = total > 0 ? (budget && !last ? "~" : "") + std::to_string(total) : "?";
+    std::fprintf(stderr, "%sit %d/%s  loss %.4f  train PSNR %.2f  anchors %zu  Gaussians %zu  %.1f it/s  %s%s",
+                 tty_ ? "\r\033[K" : "", s.iteration, of.c_str(), ema_loss_, ema_psnr_, s.anchors,
+                 s.step.gaussians, rate_, eta.c_str(), tty_ ? "" : "\n");
     std::fflush(stderr);
     open_ = tty_;
   }
@@ -111,8 +121,10 @@ int run_train(const gs::jobs::TrainRunOptions& options, bool quiet, gs::jobs::Tr
   printer.break_line();
   if (!st.ok()) return fail("train", st.code() == gs::StatusCode::kInvalidArgument ? st.message() : st.to_string());
 
-  std::printf("hbgs train: %d iterations in %.1f s (median %.1f ms per iteration), %zu anchors, ISA %s, %d threads%s\n",
-              s.iterations, s.train_seconds, s.median_iteration_ms, s.anchors, s.isa.c_str(), s.threads,
+  std::printf("hbgs train: %d iterations in %.1f s%s (median %.1f ms per iteration), %zu anchors, ISA %s, %d threads%s\n",
+              s.iterations, s.train_seconds,
+              s.time_budget > 0 ? (" of a " + std::to_string(long(std::lround(s.time_budget))) + " s time budget").c_str() : "",
+              s.median_iteration_ms, s.anchors, s.isa.c_str(), s.threads,
               s.resumed_from >= 0 ? (" (resumed at iteration " + std::to_string(s.resumed_from) + ")").c_str() : "");
   if (s.have_test_views) {
     const gs::model::EvalResult& e = s.final_eval;
@@ -144,7 +156,22 @@ Command add_train_command(CLI::App& parent) {
                   "Dataset: a COLMAP folder (images/ and sparse/0/ with points), or a NeRF-style folder or transforms .json file")
       ->required();
   sub->add_option("--out", o->out, "Run folder (model, checkpoint, results, renders)")->required();
-  sub->add_option("--iterations", o->iterations, "Training iterations")->capture_default_str()->check(CLI::Range(1, 100000000));
+  CLI::Option* iterations =
+      sub->add_option("--iterations", o->iterations, "Training iterations (with --time-budget: the most it may run)")
+          ->capture_default_str()
+          ->check(CLI::Range(1, kMaxIterations));
+  CLI::Option* time_budget =
+      sub->add_option_function<std::string>(
+             "--time-budget", [o](const std::string& text) { o->time_budget = gs::jobs::parse_time_budget(text).value(); },
+             "Fit the whole schedule into this much training time (60s, 90, 3m, 1.5m, 1h; seconds without a unit), measured "
+             "as it runs, then evaluate as usual; the steps count, not loading, evaluation or checkpoints. Without "
+             "--iterations there is no iteration cap")
+          ->check(CLI::Validator(
+              [](std::string& text) {
+                gs::Expected<double> seconds = gs::jobs::parse_time_budget(text);
+                return seconds.ok() ? std::string() : seconds.status().message().substr(std::string("--time-budget: ").size());
+              },
+              "DURATION"));
   sub->add_option("--image-features", o->image_features, "Image-based anchor features (none: plain Scaffold-GS)")
       ->capture_default_str()
       ->check(CLI::IsMember({"paper", "visible", "none"}));
@@ -157,6 +184,10 @@ Command add_train_command(CLI::App& parent) {
   sub->add_option("--max-gaussians", o->max_gaussians, "Hard budget on neural Gaussians per view")
       ->capture_default_str()
       ->check(CLI::Range(size_t(1), size_t(1) << 34));
+  sub->add_option("--gaussians-per-pixel", o->gaussians_per_pixel,
+                  "Growth budget: neural Gaussians per training view at most this many per pixel (0: none)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--voxel-size", o->voxel_size, "Anchor voxel size in world units (0: automatic)")
       ->capture_default_str()
       ->check(CLI::Range(0.0f, 1e9f));
@@ -208,9 +239,12 @@ Command add_train_command(CLI::App& parent) {
       ->capture_default_str()
       ->check(CLI::Range(-1, 100000000));
   sub->add_option("--coarse-levels", o->coarse_levels,
-                  "Coarse-to-fine halvings over the first 30% of iterations (-1: 2 with --optimize-poses unless --pose-init sfm, else 0)")
+                  "Coarse-to-fine halvings over the first --coarse-fraction of the iterations (-1: 2 with --optimize-poses unless --pose-init sfm, else 0)")
       ->capture_default_str()
       ->check(CLI::Range(-1, 4));
+  sub->add_option("--coarse-fraction", o->coarse_fraction, "Share of the iterations the coarse-to-fine levels span")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   sub->add_option("--pose-lr", o->pose_lr, "Initial pose learning rate (rad; translation x scene extent)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
@@ -220,7 +254,9 @@ Command add_train_command(CLI::App& parent) {
 #ifndef HBGS_DEVICE
   sub->add_flag("--report", args->report, "Write RUN/report.html at the end, as hbgs report RUN does with its defaults");
 #endif
-  return {sub, [args, sub] {
+  return {sub, [args, sub, iterations, time_budget] {
+            // A time budget alone: no iteration cap (a resume takes the recorded cap: it is not "given").
+            if (time_budget->count() > 0 && iterations->count() == 0) args->options.iterations = kMaxIterations;
             args->options.given.clear();
             for (const CLI::Option* opt : sub->get_options())
               if (opt->count() > 0 && !opt->get_lnames().empty()) args->options.given.push_back(opt->get_lnames().front());

@@ -232,6 +232,11 @@ std::string run_facts(const ModelSource& source, const Json& run, const Json& la
   if (last.is_object()) {
     if (last.contains("isa") && last["isa"].is_string())
       rows.emplace_back("kernels, threads", last["isa"].get<std::string>() + ", " + number_cell(last, "threads", 0));
+    if (last.contains("time_budget") && last["time_budget"].is_object()) {  // hbgs train --time-budget
+      const Json& b = last["time_budget"];
+      rows.emplace_back("time budget", number_cell(b, "seconds", 1) + " s: " + number_cell(b, "iterations_fit", 0) +
+                                           " iterations fit, " + number_cell(b, "seconds_used", 1) + " s used");
+    }
     if (last.contains("test_poses") && last["test_poses"].is_string())
       rows.emplace_back("test poses", last["test_poses"].get<std::string>());
   }

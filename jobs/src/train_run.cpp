@@ -5,6 +5,7 @@
 // progress.json, psnr_vs_time.csv/.svg, models, results.json / per_view.json, refined poses).
 #include <algorithm>
 #include <filesystem>
+#include <functional>
 #include <system_error>
 
 #include <nlohmann/json.hpp>
@@ -16,6 +17,8 @@
 #include "gs/platform/file.h"
 #include "gs/stats.h"
 #include "json_util.h"
+#include "text_util.h"
+#include "time_budget.h"
 #include "train_options.h"
 #include "train_progress.h"
 #include "train_session_state.h"
@@ -71,6 +74,12 @@ class TrainRun {
   // 4. Train. Order per iteration: step, evaluations (renders and results), the commit, then the
   // PSNR files derived from the committed progress.
   Status train();
+  // With a time budget: the pace of a step, and when due the run's new predicted length given to
+  // the trainer (set_run_length, Trainer::retarget).
+  Status steer_by_budget(int it, double seconds);
+  // Training seconds left of the budget (0 without one).
+  double remaining_seconds() const { return budget_ ? std::max(0.0, budget_->budget() - prog_.train_seconds) : 0.0; }
+  nlohmann::json budget_json(int it) const;
   Status after_step(int it);
   // The test PSNR alone (PSNR-vs-time rows).
   Status quick_psnr(int it);
@@ -125,6 +134,9 @@ class TrainRun {
   int resumed_from_ = -1, last_full_ = -1;
   bool have_test_ = false;
   model::EvalResult final_eval_;
+  std::unique_ptr<TimeBudget> budget_;
+  int planned_iterations_ = 0;  // the run's length: a_.iterations, or the time budget's prediction
+  bool final_ = false;          // the iteration being finished is the run's last
 };
 
 Status TrainRun::check_arguments() const {
@@ -196,6 +208,8 @@ Status TrainRun::check_before_session() {
     return invalid_argument(a_.out + " already holds a run (" + previous_.front().string() +
                             " exists); pass --force to overwrite it or --resume to continue it");
   }
+  if (!(a_.time_budget >= 0 && a_.time_budget <= 1e7))
+    return invalid_argument("the time budget must be between 0 (none) and 10000000 seconds, not " + std::to_string(a_.time_budget));
   Expected<std::vector<int>> save_at = parse_save_at(a_.save_at);
   if (!save_at.ok()) return save_at.status();
   save_at_ = std::move(save_at).value();
@@ -338,6 +352,17 @@ nlohmann::json TrainRun::eval_extra(int it, const model::EvalResult& r) const {
           {"threads", d_->pool->num_threads()}};
 }
 
+nlohmann::json TrainRun::budget_json(int it) const {
+  nlohmann::json j = {{"seconds", a_.time_budget},
+                      {"seconds_used", prog_.train_seconds},
+                      {"iteration_cap", a_.iterations},
+                      {"predicted_iterations", planned_iterations_},
+                      {"predictions", budget_ ? budget_->predictions() : 0},
+                      {"schedule_progress", trainer_->schedule_progress()}};
+  if (final_) j["iterations_fit"] = it;
+  return j;
+}
+
 Status TrainRun::full_eval(int it) {
   if (!have_test_) return Status::Ok();
   const std::string method = "ours_" + std::to_string(it);
@@ -353,6 +378,7 @@ Status TrainRun::full_eval(int it) {
   if (!r.ok()) return r.status();
   nlohmann::json extra = eval_extra(it, *r);
   if (lpips_) extra["lpips_backbone"] = metrics::LpipsAlex::kLabel;
+  if (a_.time_budget > 0) extra["time_budget"] = budget_json(it);
   if (a_.optimize_poses) {
     extra["test_poses"] = "dataset poses mapped into the model's frame (Sim(3) of the training camera centres), then registered against the model";
     extra["test_pose_registration"] = test_pose_report;
@@ -363,7 +389,7 @@ Status TrainRun::full_eval(int it) {
   std::string merge_note;
   GS_RETURN_IF_ERROR(write_eval_files(a_.out, method, *r, extra, &merge_note));
   if (!merge_note.empty()) note(merge_note);
-  if (lpips_ && r->lpips < 0 && it == a_.iterations)
+  if (lpips_ && r->lpips < 0 && final_)
     note("LPIPS not computed: the test views are smaller than " + std::to_string(metrics::LpipsAlex::kMinSide) + " px a side");
   if (a_.eval_every > 0) add_psnr_row(it, r->psnr);
   final_eval_ = std::move(r).value();
@@ -393,11 +419,24 @@ Status TrainRun::train() {
     if (st.ok()) st = write_psnr_files(a_.out, prog_.rows, title_);
     if (!st.ok()) return Status(st.code(), "evaluation at iteration 0: " + st.message());
   }
+  const std::function<double()> clock = a_.clock ? a_.clock : [] { return platform::now_seconds(); };
+  planned_iterations_ = a_.iterations;
+  if (a_.time_budget > 0) {
+    budget_ = std::make_unique<TimeBudget>(a_.time_budget, a_.iterations);
+    // A resumed run continues the pace it measured (and the schedule its checkpoint holds).
+    for (size_t i = 0; i < prog_.iteration_ms.size(); ++i) budget_->record(int(i) + 1, 1e-3 * prog_.iteration_ms[i]);
+    planned_iterations_ = trainer_->options().iterations;
+    if (!budget_->next_fits(prog_.train_seconds)) {
+      note("the time budget of " + fixed(a_.time_budget, 1) + " s is spent (" + fixed(prog_.train_seconds, 1) +
+           " s trained): no further iterations");
+      return Status::Ok();
+    }
+  }
   for (int it = trainer_->iteration() + 1; it <= a_.iterations; ++it) {
     model::IterationStats stats;
-    const double t0 = platform::now_seconds(), c0 = platform::process_cpu_seconds();
+    const double t0 = clock(), c0 = platform::process_cpu_seconds();
     if (Status st = trainer_->step(&stats); !st.ok()) return at_iteration(it, st);
-    const double dt = platform::now_seconds() - t0;
+    const double dt = clock() - t0;
     prog_.train_seconds += dt;
     prog_.train_cpu_seconds += platform::process_cpu_seconds() - c0;
     prog_.iteration_ms.push_back(float(1e3 * dt));
@@ -407,20 +446,41 @@ Status TrainRun::train() {
       note("iteration " + std::to_string(it) + ": the loss or a gradient was NaN or infinite; the step was skipped (" +
            std::to_string(prog_.skipped_steps) + " so far)");
     }
+    if (budget_) {
+      if (Status st = steer_by_budget(it, dt); !st.ok()) return at_iteration(it, st);
+    }
+    final_ = it == a_.iterations || (budget_ && !budget_->next_fits(prog_.train_seconds));
     TrainEvent ev;
     ev.kind = TrainEvent::kIteration;
     ev.iteration = it;
-    ev.iterations = a_.iterations;
+    // 0 while a fresh time-budgeted run has not predicted its length yet.
+    ev.iterations = final_ ? it : (budget_ && budget_->predictions() == 0 && resumed_from_ < 0) ? 0 : std::max(it, planned_iterations_);
     ev.stats = &stats;
+    ev.last = final_;
+    ev.budget_seconds = a_.time_budget;
+    ev.remaining_seconds = remaining_seconds();
     say_(ev);
     if (Status st = after_step(it); !st.ok()) return at_iteration(it, st);
+    if (final_) break;
   }
+  return Status::Ok();
+}
+
+Status TrainRun::steer_by_budget(int it, double seconds) {
+  budget_->record(it, seconds);
+  if (!budget_->due(prog_.train_seconds)) return Status::Ok();
+  const int total = budget_->predict(it, prog_.train_seconds);
+  if (total == planned_iterations_) return Status::Ok();
+  model::TrainOptions schedule = trainer_->options();
+  set_run_length(a_, std::max(total, 1), &schedule);
+  GS_RETURN_IF_ERROR(trainer_->retarget(schedule));
+  planned_iterations_ = total;
   return Status::Ok();
 }
 
 // The evaluations, pose report, commit and PSNR files due after iteration it.
 Status TrainRun::after_step(int it) {
-  const bool full = it == a_.iterations || listed(it);
+  const bool full = final_ || listed(it);
   const bool quick = !full && a_.eval_every > 0 && have_test_ && it % a_.eval_every == 0;
   const bool save = full || (a_.checkpoint_every > 0 && it % a_.checkpoint_every == 0);
   Status out_st;
@@ -444,6 +504,7 @@ Status TrainRun::after_step(int it) {
 
 Status TrainRun::finish() {
   const int final_it = trainer_->iteration();
+  final_ = true;
   if (last_full_ != final_it) GS_RETURN_IF_ERROR(full_eval(final_it));
   if (a_.optimize_poses)
     GS_RETURN_IF_ERROR(write_posed_model(a_.dataset, d_->train_names, poses_of(trainer_->cameras()),
@@ -465,6 +526,8 @@ void TrainRun::summarise(TrainRunSummary* summary) const {
   s.train_seconds = prog_.train_seconds;
   s.median_iteration_ms = median(std::vector<double>(prog_.iteration_ms.begin(), prog_.iteration_ms.end()));
   s.skipped_steps = prog_.skipped_steps;
+  s.time_budget = a_.time_budget;
+  s.schedule_progress = trainer_->schedule_progress();
   s.anchors = trainer_->model().anchor_count;
   s.train_views = d_->train_views.size();
   s.test_views = d_->test_views.size();

@@ -63,13 +63,8 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
   d.input_errors = d.errors(input, true);
   d.pool = std::make_unique<platform::ThreadPool>(options.threads);
   if (options.optimize_poses && options.pose_init == "sfm") {
-    // Views SfM could not register keep their given pose, which may be far off: they are held back
-    // from training and registered against the model every 5 % of the run from 20 % to 60 % of it
-    // (earlier, the model is too rough to register against), each joining once it converges (on a
-    // resume the checkpoint says which are still held).
-    resolved->train.held_back_register_every = std::max(1, options.iterations / 20);
-    resolved->train.held_back_register_from = options.iterations / 5;
-    resolved->train.held_back_register_until = options.iterations * 3 / 5;
+    // Views SfM could not register are held back (their registration schedule: set_run_length); on a
+    // resume the checkpoint says which are still held.
     if (!options.resume) {
       GS_RETURN_IF_ERROR(d.init_by_sfm(work_dir, say));
       if (!d.sfm_registered.empty() && std::find(d.sfm_registered.begin(), d.sfm_registered.end(), uint8_t(0)) != d.sfm_registered.end()) {

@@ -3,7 +3,8 @@
 // with gs::Renderer from a random Gaussian cloud, SfM-like points sampled from its means. Checks
 // that the loss falls, that step() allocates nothing (densification and image-feature refresh
 // included), that the anchor and Gaussian budgets hold while growth happens, that a checkpoint
-// resumes bit-identically, that a run killed at a random moment leaves a loadable checkpoint, and
+// resumes bit-identically, that a run re-targeted to a new length (a time budget) keeps its rates
+// monotone and its closed windows closed, that a run killed at a random moment leaves a loadable checkpoint, and
 // that bad inputs and damaged checkpoints are refused with clear messages.
 #include <doctest/doctest.h>
 #include <signal.h>
@@ -31,6 +32,7 @@
 #include "gs/model/anchors.h"
 #include "gs/model/hybrid_model.h"
 #include "gs/model/trainer.h"
+#include "gs/optim/schedule.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
 #include "gs/render.h"
@@ -536,6 +538,111 @@ TEST_CASE("trainer: results do not depend on the thread count (masked views, den
     CHECK(r.poses == serial.poses);
   }
   MESSAGE("anchors at the end: " << one->model().anchor_count);
+}
+
+// A schedule that follows the run's length n (the test's own rule, in the spirit of the job's
+// set_run_length): statistics from n/8, growth every 2 iterations from n/4 to n/2, pose warm-up over
+// n/4, two coarse levels over the first half.
+TrainOptions length_options(int n) {
+  TrainOptions o = busy_options(n);
+  o.schedule_iterations = n;
+  o.stat_start = n / 8;
+  o.update_from = n / 4;
+  o.update_interval = 2;
+  o.update_until = n / 2;
+  o.pose_warmup = n / 4;
+  o.coarse_levels = 2;
+  o.coarse_fraction = 0.5;
+  return o;
+}
+
+TEST_CASE("trainer: retarget follows a new run length without undoing what happened, and the checkpoint keeps it") {
+  platform::ThreadPool pool(2);
+  const HybridModel m0 = initial_model(config());
+  const TrainOptions o40 = length_options(40);
+  auto t = make_trainer(m0, o40, &pool);
+  double last_progress = 0, last_lr = 1e9;
+  int last_downscale = 1 << 30;
+  IterationStats st;
+  int adjusted_at = -1;
+  auto step_to = [&](int until) {
+    while (t->iteration() < until) {
+      REQUIRE(t->step(&st).ok());
+      // The rates only fall: the schedule's progress never decreases, nor the offsets' rate with it,
+      // and the resolution only gets finer.
+      const double p = t->schedule_progress();
+      const double lr = optim::expon_lr_at(o40.lr_offset_init, o40.lr_offset_final, p);
+      CHECK(p >= last_progress);
+      CHECK(lr <= last_lr);
+      CHECK(st.downscale <= last_downscale);
+      last_progress = p;
+      last_lr = lr;
+      last_downscale = st.downscale;
+      if (st.adjusted) adjusted_at = st.iteration;
+    }
+  };
+  step_to(8);
+  CHECK(t->schedule_progress() == 8.0 / 40);  // a run of fixed length: it / schedule_iterations
+
+  // Longer (80) at 8: the statistics have started (5) and keep their start; growth (from 10) has not
+  // and moves to 20; the window ends at 40; the warm-up only shortens (10, not 20).
+  REQUIRE(t->retarget(length_options(80)).ok());
+  CHECK(t->options().iterations == 80);
+  CHECK(t->options().schedule_iterations == 80);
+  CHECK(t->options().stat_start == 5);
+  CHECK(t->options().update_from == 20);
+  CHECK(t->options().update_until == 40);
+  CHECK(t->options().pose_warmup == 10);
+  step_to(12);
+  CHECK(t->schedule_progress() == 8.0 / 40);  // held until it / 80 catches up, not lowered
+  CHECK(adjusted_at == -1);                    // the 40-iteration run would have grown at 12
+  step_to(24);
+  CHECK(t->schedule_progress() == 24.0 / 80);
+  CHECK(adjusted_at == 24);
+  CHECK(t->downscale_at(24) == 2);  // level 1 of 2 (coarse phase to 40)
+
+  // Much longer (400) at 24: coarse to fine would end at 200, which would put iteration 25 back to
+  // a quarter of the resolution; the level reached is kept.
+  REQUIRE(t->retarget(length_options(400)).ok());
+  CHECK(t->downscale_at(25) == 2);
+  CHECK(t->options().update_until == 200);
+  // Shorter (30) at 24: growth ends at 15, so its window closes now...
+  REQUIRE(t->retarget(length_options(30)).ok());
+  CHECK(t->options().update_until == 15);
+  step_to(26);
+  CHECK(t->schedule_progress() == 26.0 / 30);  // the rates jump ahead to the shorter run's
+  // ... and never re-opens, even when the run gets long again.
+  REQUIRE(t->retarget(length_options(400)).ok());
+  CHECK(t->options().update_until == 15);
+  CHECK(t->options().update_from == 20);
+  const TrainOptions retargeted = t->options();
+
+  // The checkpoint keeps the schedule: a trainer created with the first options and loaded from it
+  // continues exactly like the retargeted one.
+  test::TempDir dir("gs_trainer_retarget");
+  const std::string ckpt = dir / "ckpt.bin";
+  REQUIRE(t->save_checkpoint(ckpt).ok());
+  auto u = make_trainer(m0, o40, &pool);
+  const Status loaded = u->load_checkpoint(ckpt);
+  REQUIRE_MESSAGE(loaded.ok(), loaded.to_string());
+  CHECK(u->options().iterations == retargeted.iterations);
+  CHECK(u->options().schedule_iterations == retargeted.schedule_iterations);
+  CHECK(u->options().update_from == retargeted.update_from);
+  CHECK(u->options().update_until == retargeted.update_until);
+  CHECK(u->options().pose_warmup == retargeted.pose_warmup);
+  CHECK(u->schedule_progress() == t->schedule_progress());
+  CHECK(u->downscale_at(27) == t->downscale_at(27));
+  step_to(34);
+  CHECK(adjusted_at == 24);  // closed windows stay closed
+  const RunResult resumed = run(u, 34);
+  CHECK(resumed.model == serialize_model(t->model()));
+  // A trainer never re-targeted writes no schedule: loading its checkpoint keeps the loader's options.
+  auto v = make_trainer(m0, o40, &pool);
+  run(v, 3, ckpt, 3);
+  auto w = make_trainer(m0, length_options(60), &pool);
+  REQUIRE(w->load_checkpoint(ckpt).ok());
+  CHECK(w->options().iterations == 60);
+  CHECK(w->options().update_until == 30);
 }
 
 TEST_CASE("trainer: a run killed at a random moment leaves a checkpoint that loads and resumes") {

@@ -12,8 +12,8 @@
 // cotangent, so the per-pixel state is 3 scalars instead of 7.
 //
 // Semantics are those of raster_ref.cpp, which is the spec. Rounding differs slightly: the
-// exponent is evaluated per row as (A dx + B) dx + C, and exp is a range-reduced degree-6
-// polynomial (relative error < 2e-7 on the [-80, 0] range used), so results agree with the
+// exponent is evaluated in base 2 per row as (A' dx + B') dx + C' with coefficients pre-scaled by
+// log2(e), and 2^x is a degree-6 polynomial (relative error < 2e-7), so results agree with the
 // reference to a few 1e-7 relative, and threshold decisions may flip at exact ties.
 //
 // Included only by the per-ISA translation units in ../variants/, which instantiate the kernels for
@@ -66,22 +66,28 @@ inline bool splat_support_box(const float* s, const TileGeometry& g, int32_t* bx
   return *bx0 <= *bx1 && *by0 <= *by1;
 }
 
+// 2^x for x <= 0 (inputs below -100 give 2^-100): x = n + r with n an integer and r in [-0.5, 0.5],
+// 2^r by its degree-6 Taylor polynomial (relative error < 2e-7), 2^n added to the exponent bits.
+// The kernels evaluate the exponent pre-scaled by log2(e) (and the forward adds log2(opacity)), so
+// exp needs no range-reduction multiplies and alpha no opacity multiply.
 template <class B>
-inline B exp_nonpositive(B x) {
+inline B exp2_nonpositive(B x) {
   using I = xsimd::batch<int32_t, typename B::arch_type>;
-  x = xsimd::max(x, B(-80.0f));
-  const B n = xsimd::nearbyint(x * B(1.44269504088896341f));
-  const B r = (x - n * B(0.693145751953125f)) - n * B(1.42860682030941723212e-6f);
-  B p = B(1.0f / 720.0f);
-  p = p * r + B(1.0f / 120.0f);
-  p = p * r + B(1.0f / 24.0f);
-  p = p * r + B(1.0f / 6.0f);
-  p = p * r + B(0.5f);
-  p = p * r + B(1.0f);
+  x = xsimd::max(x, B(-100.0f));
+  const B n = xsimd::nearbyint(x);
+  const B r = x - n;
+  B p = B(1.5403530393381606e-4f);
+  p = p * r + B(1.3333558146428443e-3f);
+  p = p * r + B(9.618129107628477e-3f);
+  p = p * r + B(5.550410866482158e-2f);
+  p = p * r + B(2.402265069591007e-1f);
+  p = p * r + B(6.931471805599453e-1f);
   p = p * r + B(1.0f);
   const I bits = xsimd::bitwise_cast<I>(p) + (xsimd::to_int(n) << 23);
   return xsimd::bitwise_cast<B>(bits);
 }
+
+constexpr float kLog2e = 1.44269504088896341f;
 
 template <class Arch>
 struct RasterKernels {
@@ -98,10 +104,12 @@ struct RasterKernels {
     return B::load_aligned(v);
   }
 
-  // A splat as the forward's inner loop wants it: exponent coefficients pre-scaled, support box
-  // columns, and the exponent below which alpha < 1/255 (with a 1e-3 margin) so exp can be skipped.
+  // A splat as the forward's inner loop wants it: exponent coefficients pre-scaled (by -1/2 and by
+  // log2(e), so the exponent is in base 2), the opacity as its base-2 log added to the exponent,
+  // support box columns, and the exponent below which alpha < 1/255 (with a 1e-3 margin) so exp can be
+  // skipped.
   struct ChunkSplat {
-    float mx, my, half_a, neg_b, half_c, opacity, threshold, index1;
+    float mx, my, half_a, neg_b, half_c, log2_opacity, threshold, index1;
     float rgbd[4];
     int16_t x0, x1;  // inclusive tile-local columns of the support box
   };
@@ -133,10 +141,10 @@ struct RasterKernels {
         ChunkSplat& c = chunk[nb];
         c.x0 = int16_t(bx0); c.x1 = int16_t(bx1);
         c.mx = s[kSplatMx]; c.my = s[kSplatMy];
-        c.half_a = -0.5f * s[kSplatA]; c.neg_b = -s[kSplatB]; c.half_c = -0.5f * s[kSplatC];
-        c.opacity = s[kSplatOpacity];
+        c.half_a = -0.5f * kLog2e * s[kSplatA]; c.neg_b = -kLog2e * s[kSplatB]; c.half_c = -0.5f * kLog2e * s[kSplatC];
+        c.log2_opacity = scalar::log2(s[kSplatOpacity]);
         c.rgbd[0] = s[kSplatR]; c.rgbd[1] = s[kSplatG]; c.rgbd[2] = s[kSplatBlue]; c.rgbd[3] = s[kSplatDepth];
-        c.threshold = -0.5f * s[kSplatTwoTau] - 1e-3f;
+        c.threshold = kLog2e * (-0.5f * s[kSplatTwoTau] - 1e-3f);
         c.index1 = float(c0 + k + 1);
         for (int32_t y = by0; y <= by1; ++y) rows[y][row_count[y]++] = uint8_t(nb);
         ++nb;
@@ -161,7 +169,7 @@ struct RasterKernels {
             const B dx = B(c.mx) - px;
             const B power = (B(c.half_a) * dx + B(c.neg_b * dy)) * dx + B(c.half_c * dy * dy);
             if (!xsimd::any(power >= B(c.threshold))) continue;
-            const B raw = B(c.opacity) * exp_nonpositive(power);
+            const B raw = exp2_nonpositive(power + B(c.log2_opacity));
             const B alpha = xsimd::min(raw, B(kAlphaMax));
             const M contributes = (power <= B(0.0f)) & (alpha >= B(kAlphaMin)) & !is_done;
             if (!xsimd::any(contributes)) continue;
@@ -231,26 +239,26 @@ struct RasterKernels {
       const float* s = splats + size_t(i) * kSplatStride;
       int32_t bx0, by0, bx1, by1;
       if (!splat_support_box(s, g, &bx0, &by0, &bx1, &by1)) continue;
-      const B threshold(-0.5f * s[kSplatTwoTau] - 1e-3f);
+      const B threshold(kLog2e * (-0.5f * s[kSplatTwoTau] - 1e-3f));
       const B idx = B(float(i));
       const B cr(s[kSplatR]), cg(s[kSplatG]), cb(s[kSplatBlue]), op(s[kSplatOpacity]);
       const B ca(s[kSplatA]), cbb(s[kSplatB]), cc(s[kSplatC]);
-      const B half_a(-0.5f * s[kSplatA]);
+      const B half_a2(-0.5f * kLog2e * s[kSplatA]);  // base-2 exponent coefficients
       B acc_r(0.0f), acc_g(0.0f), acc_b(0.0f), acc_op(0.0f), acc_mx(0.0f), acc_my(0.0f), acc_a(0.0f), acc_b2(0.0f),
           acc_c(0.0f);
       const int32_t c0 = bx0 / N * N, c1 = bx1 / N * N;
       for (int32_t ly = by0; ly <= by1; ++ly) {
         const float dyf = s[kSplatMy] - (float(g.y0 + ly) + 0.5f);
         const B dy(dyf);
-        const B row_b(-s[kSplatB] * dyf), row_c(-0.5f * s[kSplatC] * dyf * dyf);
+        const B row_b2(-kLog2e * s[kSplatB] * dyf), row_c2(-0.5f * kLog2e * s[kSplatC] * dyf * dyf);
         for (int32_t lx = c0; lx <= c1; lx += N) {
           const int o = ly * kTileSize + lx;
           const M active = idx < B::load_aligned(last + o);
           if (!xsimd::any(active)) continue;
           const B dx = B(s[kSplatMx]) - (B(float(g.x0 + lx)) + centres);
-          const B power = (half_a * dx + row_b) * dx + row_c;
+          const B power = (half_a2 * dx + row_b2) * dx + row_c2;  // base 2
           if (!xsimd::any(power >= threshold)) continue;
-          const B G = exp_nonpositive(power);
+          const B G = exp2_nonpositive(power);
           const B raw = op * G;
           const M clamped = raw > B(kAlphaMax);
           const B alpha = xsimd::select(clamped, B(kAlphaMax), raw);

@@ -43,12 +43,25 @@ class SfmPoseInitializer;
 struct TrainRunOptions {
   std::string dataset;  // COLMAP dataset folder with SfM points (images/, sparse/0/)
   std::string out;      // run folder (train_run only)
-  int iterations = 30000;
+  int iterations = 30000;  // with a time budget: the most it may run (a cap)
+  // Seconds of training (the steps, as train_seconds counts them: not loading, evaluation or
+  // checkpoints) the whole schedule is fitted into; 0: none, the run is `iterations` long. The run
+  // measures its pace as it goes, predicts how many iterations fit (at most `iterations`) and
+  // re-targets its schedule to that length (set_run_length, model::Trainer::retarget), stops
+  // before an iteration that would end past the budget, and ends with the usual evaluation. A
+  // resumed run has what is left of it (budget minus the train_seconds already recorded).
+  double time_budget = 0;
+  // The clock the training steps are timed with (train_seconds, the time budget); null:
+  // platform::now_seconds. Tests inject a fake one. Not an option: run.json does not record it.
+  std::function<double()> clock;
   std::string image_features = "paper";  // "paper" or "none" (plain Scaffold-GS)
   // What renders are blended on and masked views composited on (gs/model/background.h): black,
   // white, random (a colour per iteration; evaluated on black) or r,g,b.
   std::string background = "black";
   size_t max_anchors = 50000, max_gaussians = 500000;
+  // Growth budget: neural Gaussians per training view at most this many per pixel of the view (0: no
+  // budget; model::TrainOptions::growth_gaussians_per_pixel).
+  double gaussians_per_pixel = 0;
   float voxel_size = 0.0f;  // anchor voxel size in world units (0: automatic)
   int offsets = 10;         // neural Gaussians (offsets) per anchor, k
   int feature_dim = 32;     // learned anchor feature width
@@ -72,6 +85,7 @@ struct TrainRunOptions {
   // whose poses SfM already initialised). Not an option: run.json does not record it.
   const SfmPoseInitializer* sfm_pose_init = nullptr;
   int coarse_levels = -1;    // coarse-to-fine halvings (-1: 2 when optimising poses without SfM init, else 0)
+  double coarse_fraction = 0.3;  // share of the iterations the coarse levels span
   int feature_refresh = -1;  // image features recomputed every N iterations (-1: 250 when optimising poses, else 0)
   double pose_lr = 5e-5;     // initial pose learning rate (rad; translation x scene extent)
   bool resume = false, force = false;
@@ -88,6 +102,16 @@ struct ResolvedTraining {
   model::TrainOptions train;
 };
 Expected<ResolvedTraining> resolve_training(const TrainRunOptions& options);
+// Everything in the trainer's options that follows from the run's length, for a run of
+// `iterations` iterations: the learning-rate horizon, the densification window, the pose warm-up,
+// the registration passes, the held-back views' registrations (and coarse to fine, from
+// TrainOptions::iterations). resolve_training sets it for options.iterations; a time-budgeted run
+// again for each new prediction of its length (model::Trainer::retarget).
+void set_run_length(const TrainRunOptions& options, int iterations, model::TrainOptions* train);
+
+// --time-budget: a positive duration, seconds without a unit or with s, m or h ("60s", "90", "3m",
+// "1.5m", "1h"); at most 10,000,000 s. Errors name the text and what is accepted.
+Expected<double> parse_time_budget(const std::string& text);
 
 // What the job reports while it runs. kNote, kStage and kDetail (a line of a sub-step such as
 // COLMAP) carry a line of text; kIteration carries the
@@ -95,8 +119,11 @@ Expected<ResolvedTraining> resolve_training(const TrainRunOptions& options);
 struct TrainEvent {
   enum Kind { kNote, kStage, kDetail, kIteration, kPoseErrors } kind = kNote;
   std::string message;
+  // kIteration: the iteration and the run's length (with a time budget: its current prediction).
   int iteration = 0, iterations = 0;
   const model::IterationStats* stats = nullptr;  // kIteration
+  bool last = false;                             // kIteration: the run's last iteration
+  double budget_seconds = 0, remaining_seconds = 0;  // kIteration with a time budget: the budget and what is left
   pose::PoseErrors pose_errors;                  // kPoseErrors (Sim(3)-aligned, against the true poses)
 };
 using TrainProgressFn = std::function<void(const TrainEvent&)>;
@@ -165,6 +192,8 @@ struct TrainRunSummary {
   model::EvalResult final_eval;  // the test views at the last iteration
   double train_seconds = 0, median_iteration_ms = 0, mean_gaussians = 0;
   int skipped_steps = 0;  // steps skipped by the numerical guard (non-finite loss or gradient)
+  double time_budget = 0;        // the run's time budget in seconds (0: none)
+  double schedule_progress = 0;  // fraction of the learning-rate schedules reached (model::Trainer::schedule_progress)
   size_t anchors = 0, train_views = 0, test_views = 0;
   uint64_t model_bytes = 0, model_file_bytes = 0;
   pose::PoseErrors train_pose_input, train_pose_final;  // Sim(3)-aligned, against the true poses

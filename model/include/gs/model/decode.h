@@ -72,8 +72,8 @@ inline void camera_centre(const Pose& pose, double c[3]) {
 
 // Visibility pre-filter: the anchor as an isotropic blob of radius 3 max(s[0:3]) must be in front
 // of the camera (z > 0.2, the renderer's near plane) and its projected disc must touch the image.
-// Writes the visible rows among anchors [begin, end) in increasing order; returns their count.
-// (The step graph runs ranges in parallel and joins them: gs/model/step_graph.h.)
+// Writes the visible rows among anchors [begin, end) in increasing order (rows null: only counts
+// them); returns their count. (The step graph runs ranges in parallel and joins them: step_graph.h.)
 template <class T>
 size_t select_visible_anchor_range(const Camera& cam, const AnchorParams<T>& a, size_t begin, size_t end,
                                    uint32_t* rows) {
@@ -92,12 +92,13 @@ size_t select_visible_anchor_range(const Camera& cam, const AnchorParams<T>& a, 
     const double r = 3.0 * s * fmax / z + 1.0;  // px
     const double u = cam.intr.fx * x / z + cam.intr.cx, v = cam.intr.fy * y / z + cam.intr.cy;
     if (u + r < 0 || u - r > cam.intr.width || v + r < 0 || v - r > cam.intr.height) continue;
-    rows[V++] = uint32_t(i);
+    if (rows) rows[V] = uint32_t(i);
+    ++V;
   }
   return V;
 }
 
-// All anchors: writes the visible anchor rows in increasing order; returns V.
+// All anchors: writes the visible anchor rows in increasing order (rows null: only counts); returns V.
 template <class T>
 size_t select_visible_anchors(const Camera& cam, const AnchorParams<T>& a, uint32_t* rows) {
   return select_visible_anchor_range(cam, a, 0, a.count, rows);

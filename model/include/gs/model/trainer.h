@@ -50,6 +50,12 @@ struct TrainOptions {
   int stat_start = 500, update_from = 1500, update_interval = 100, update_until = 15000;
   double densify_grad_threshold = 0.0002, success_threshold = 0.8, min_opacity = 0.005;
   int update_depth = 3, update_init_factor = 16, update_hierarchy_factor = 4;
+  // Growth budget (0: none): neural Gaussians per training view at most this many per pixel of the
+  // view. A growth step predicts the Gaussians per view from the anchors each view sees and the kept
+  // Gaussians per visible anchor of the current step; when the candidates would exceed the budget,
+  // it takes the cells with the largest mean gradients first. The render cost of an iteration
+  // follows the Gaussians per view, so this bounds it whatever the run's length.
+  double growth_gaussians_per_pixel = 0;
   // Image features are recomputed from the current poses every this many iterations (0: never;
   // the training job, gs/jobs/train.h, sets 250 when it optimises the poses).
   int image_feature_refresh = 0;
@@ -127,8 +133,23 @@ class Trainer {
   // Resolution divisor used at a 1-based iteration (coarse to fine).
   int downscale_at(int iteration) const;
 
+  // A new length for the run, while it trains (a time budget, gs/jobs/train.h, re-predicts how many
+  // iterations fit as it measures its pace). Takes from `schedule` only what follows from the run's
+  // length: iterations and schedule_iterations, the densification window (stat_start, update_from,
+  // update_interval, update_until), pose_warmup, the registration passes (pose_register_every,
+  // pose_register_until) and the held-back registrations (held_back_register_every, _from, _until),
+  // and the end of coarse to fine (coarse_fraction x iterations). What has happened stays: the
+  // learning rates never rise again (schedule_progress never decreases), a window that has closed
+  // never re-opens and one that has started keeps its start, the pose warm-up only shortens, and the
+  // resolution never gets coarser. The checkpoint keeps the re-targeted schedule.
+  Status retarget(const TrainOptions& schedule);
+  // The fraction of the learning-rate schedules reached at the last step: iteration /
+  // schedule_iterations in a run of fixed length; after a retarget, never below what it was.
+  double schedule_progress() const;
+
   // Checkpoint: magic "HBGSCKPT", version, the model, every Adam moment and step count, densification
-  // statistics, iteration, RNG and view-order state, the training poses and their Adam state.
+  // statistics, iteration, RNG and view-order state, the training poses and their Adam state, the
+  // held-back views and, once retarget was called, the re-targeted schedule (restored on load).
   // Written atomically (temp file + rename). Other versions are refused with a message.
   Status save_checkpoint(const std::string& path) const;
   // Restores a checkpoint written by save_checkpoint for the same training views (count checked).

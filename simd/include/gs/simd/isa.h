@@ -53,6 +53,7 @@ inline void copy(const T* first, const T* last, T* out) {
   inline double name(double x) { return ::name(x); }
 GS_SIMD_SCALAR_LIBM(exp)
 GS_SIMD_SCALAR_LIBM(log)
+GS_SIMD_SCALAR_LIBM(log2)
 GS_SIMD_SCALAR_LIBM(sqrt)
 GS_SIMD_SCALAR_LIBM(tanh)
 GS_SIMD_SCALAR_LIBM(floor)
