@@ -44,14 +44,17 @@ class FloatBackend {
   static constexpr int kChunks = 8;        // fixed MLP row partition (thread-count independent)
   static constexpr int kMinChunkRows = 64;
 
-  // max_mlp_params: the largest MLP's parameter count (per-chunk gradient buffers).
+  // max_mlp_params: the largest MLP's parameter count (per-chunk gradient buffers). max_height:
+  // the tallest image loss_bwd runs on in bands of rows (taller ones, or 0, run in one call).
   void init(Renderer* renderer, const simd::KernelTable* kernels, platform::ThreadPool* pool, size_t max_mlp_params,
-            int max_width) {
+            int max_width, int max_height = 0) {
     renderer_ = renderer;
     kt_ = kernels;
     pool_ = pool;
     loss_params_ = simd::make_loss_params();
-    loss_scratch_.assign(simd::loss_scratch_floats(max_width, 1), 0.0f);
+    loss_scratch_stride_ = simd::loss_scratch_floats(max_width, 1);
+    loss_scratch_.assign(loss_scratch_stride_ * size_t(pool ? pool->num_threads() : 1), 0.0f);
+    loss_rows_.assign(2 * size_t(std::max(max_height, 0)), 0.0);
     chunk_grads_.assign(size_t(kChunks) * max_mlp_params, 0.0f);
     max_mlp_params_ = max_mlp_params;
   }
@@ -123,6 +126,8 @@ class FloatBackend {
     return st;
   }
   int replans() const { return replans_; }
+  // The pool the step graph's own loops (decode, gradient scatter) run on (null: the calling thread).
+  platform::ThreadPool* pool() const { return pool_; }
 
   // The on-device decode: MLPs whose float parameters are keys[id] run as int8 (qmlp_fwd) with the
   // scratch planned for `rows` rows; null turns it off. The outputs are the float path's (final
@@ -153,8 +158,31 @@ class FloatBackend {
     return Status::Ok();
   }
 
+  // In bands of rows over the pool, each with its worker's scratch; the per-row sums are added in
+  // row order, so l1 and ssim are the one-call kernel's for any number of bands (loss.h).
   void loss_bwd(int W, int H, const float* image, const float* target, float* v_image, double* l1, double* ssim) {
-    kt_->loss_bwd(&loss_params_, W, H, image, target, 1.0, loss_scratch_.data(), v_image, l1, ssim);
+    if (size_t(H) * 2 > loss_rows_.size()) {
+      kt_->loss_bwd(&loss_params_, W, H, image, target, 1.0, loss_scratch_.data(), v_image, l1, ssim);
+      return;
+    }
+    double* row_l1 = loss_rows_.data();
+    double* row_ssim = row_l1 + H;
+    const int bands = pool_ ? std::max(1, std::min(pool_->num_threads(), H / 32)) : 1;
+    auto body = [&](size_t b, size_t e, int worker) {
+      for (size_t i = b; i < e; ++i)
+        kt_->loss_bwd_rows(&loss_params_, W, H, int32_t(int64_t(H) * int64_t(i) / bands),
+                           int32_t(int64_t(H) * int64_t(i + 1) / bands), image, target, 1.0,
+                           loss_scratch_.data() + size_t(worker) * loss_scratch_stride_, v_image, row_l1, row_ssim);
+    };
+    run(size_t(bands), body);
+    double sum_l1 = 0, sum_ssim = 0;
+    for (int r = 0; r < H; ++r) {
+      sum_l1 += row_l1[r];
+      sum_ssim += row_ssim[r];
+    }
+    const double count = double(3 * size_t(W)) * double(H);
+    *l1 = sum_l1 / count;
+    *ssim = sum_ssim / count;
   }
 
   void loss_fwd(int W, int H, const float* image, const float* target, double* l1, double* ssim) {
@@ -203,7 +231,9 @@ class FloatBackend {
   const simd::KernelTable* kt_ = nullptr;
   platform::ThreadPool* pool_ = nullptr;
   simd::LossParams loss_params_{};
-  std::vector<float> loss_scratch_;
+  std::vector<float> loss_scratch_;  // [workers, loss_scratch_stride_]
+  size_t loss_scratch_stride_ = 0;
+  std::vector<double> loss_rows_;     // [2, max_height] per-row sums of |d| and of the SSIM map
   std::vector<float> chunk_grads_;
   size_t max_mlp_params_ = 0;
   int replans_ = 0;
@@ -240,7 +270,7 @@ inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, si
   GS_RETURN_IF_ERROR(renderer->init(rc, pool, kernels));
   size_t max_params = 0;
   for (const Mlp& m : model.mlps) max_params = std::max(max_params, m.params.size());
-  backend->init(renderer, kernels, pool, max_params, max_width);
+  backend->init(renderer, kernels, pool, max_params, max_width, max_height);
   const ModelParamsT<float> p = model_params(model);
   ws->reserve(rows, model.config.k, p.shapes, p.image_feature_dim, ws_width, ws_height, training);
   return rc;

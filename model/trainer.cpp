@@ -6,6 +6,7 @@
 #include "gs/model/trainer.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -40,18 +41,38 @@ float cameras_extent(const std::vector<const Camera*>& cameras) {
 
 // ---- Trainer ----------------------------------------------------------------------------------
 
+namespace {
+
+// f(group, begin, end) over slices of every group's live gradient: part i of the pool's parts
+// takes the i-th slice of each group, so one parallel loop covers all groups.
+template <class F>
+void for_gradient_slices(platform::ThreadPool* pool, const std::vector<detail::ParamGroup>& groups, size_t M, F&& f) {
+  size_t total = 0;
+  for (const detail::ParamGroup& g : groups) total += g.live(M);
+  const size_t parts = detail::part_count(pool, total, 1 << 15);
+  detail::for_parts(pool, parts, parts, [&](size_t i, size_t, size_t) {
+    for (size_t gi = 0; gi < groups.size(); ++gi) {
+      const size_t n = groups[gi].live(M);
+      f(gi, detail::part_begin(n, parts, i), detail::part_begin(n, parts, i + 1));
+    }
+  });
+}
+
+}  // namespace
+
 bool Trainer::Impl::gradients_finite(size_t M, const double v_pose[6]) const {
-  for (const detail::ParamGroup& g : groups) {
-    const size_t n = g.live(M);
-    const float* p = g.grad.data();
-    uint32_t bad = 0;
-    for (size_t i = 0; i < n; ++i) {
+  std::atomic<uint32_t> bad{0};
+  for_gradient_slices(pool, groups, M, [&](size_t gi, size_t b, size_t e) {
+    const float* p = groups[gi].grad.data();
+    uint32_t any = 0;
+    for (size_t i = b; i < e; ++i) {
       uint32_t bits;
       std::memcpy(&bits, p + i, 4);
-      bad |= uint32_t((bits & 0x7f800000u) == 0x7f800000u);
+      any |= uint32_t((bits & 0x7f800000u) == 0x7f800000u);
     }
-    if (bad) return false;
-  }
+    if (any) bad.store(1, std::memory_order_relaxed);
+  });
+  if (bad.load(std::memory_order_relaxed)) return false;
   for (int i = 0; i < 6; ++i)
     if (!std::isfinite(v_pose[i])) return false;
   return true;
@@ -204,7 +225,7 @@ Status Trainer::Impl::register_held(int it, int* released) {
 }
 
 void Trainer::Impl::load_target(const io::DatasetView& v, int s, const float bg[3]) {
-  io::composite_target(v.image, v.mask, s, bg, target.data());
+  io::composite_target(v.image, v.mask, s, bg, target.data(), pool);
 }
 
 int Trainer::Impl::downscale_at(int it) const {
@@ -354,7 +375,10 @@ Status Trainer::step(IterationStats* stats) {
   for (int c = 0; c < 3; ++c) d.backend.background[c] = bg[c];
   d.load_target(view, scale, bg);
   const size_t M = d.model.anchor_count;
-  for (detail::ParamGroup& g : d.groups) std::fill(g.grad.begin(), g.grad.begin() + std::ptrdiff_t(g.live(M)), 0.0f);
+  for_gradient_slices(d.pool, d.groups, M, [&](size_t gi, size_t b, size_t e) {
+    float* grad = d.groups[gi].grad.data();
+    std::fill(grad + b, grad + e, 0.0f);
+  });
   ModelParamsT<float> p = d.params();
   ModelGradsT<float> grads = d.grads();
   double v_pose[6] = {0, 0, 0, 0, 0, 0};

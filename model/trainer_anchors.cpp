@@ -22,26 +22,32 @@ detail::CellKey cell_of(const float* p, double size) {
 }  // namespace
 
 void Trainer::Impl::accumulate_stats(const Camera& cam) {
+  // Both loops run over the pool: visible rows are distinct, and so are the (row, j) slots of the
+  // kept Gaussians, so every statistic gets exactly the serial pass's addition.
   const size_t V = last_visible;
   const int K = k();
   const float* alpha = ws.y[kMlpOpacity].data();
-  for (size_t v = 0; v < V; ++v) {
-    const uint32_t row = ws.rows[v];
-    float sum = 0;
-    for (int j = 0; j < K; ++j) sum += std::max(alpha[v * size_t(K) + size_t(j)], 0.0f);
-    opacity_accum[row] += sum;
-    anchor_seen[row] += 1;
-  }
+  detail::parallel_ranges(pool, V, 1024, [&](size_t b, size_t e) {
+    for (size_t v = b; v < e; ++v) {
+      const uint32_t row = ws.rows[v];
+      float sum = 0;
+      for (int j = 0; j < K; ++j) sum += std::max(alpha[v * size_t(K) + size_t(j)], 0.0f);
+      opacity_accum[row] += sum;
+      anchor_seen[row] += 1;
+    }
+  });
   const int32_t* radii = renderer.radii();
   const float hw = 0.5f * float(cam.intr.width), hh = 0.5f * float(cam.intr.height);
-  for (size_t n = 0; n < ws.ng.count; ++n) {
-    if (radii[n] <= 0) continue;
-    const uint32_t s = ws.source[n];
-    const size_t idx = size_t(ws.rows[s / uint32_t(K)]) * size_t(K) + s % uint32_t(K);
-    const float gx = ws.v_means2d[2 * n] * hw, gy = ws.v_means2d[2 * n + 1] * hh;  // NDC-space gradient
-    grad_accum[idx] += std::sqrt(gx * gx + gy * gy);
-    grad_denom[idx] += 1;
-  }
+  detail::parallel_ranges(pool, ws.ng.count, 4096, [&](size_t b, size_t e) {
+    for (size_t n = b; n < e; ++n) {
+      if (radii[n] <= 0) continue;
+      const uint32_t s = ws.source[n];
+      const size_t idx = size_t(ws.rows[s / uint32_t(K)]) * size_t(K) + s % uint32_t(K);
+      const float gx = ws.v_means2d[2 * n] * hw, gy = ws.v_means2d[2 * n + 1] * hh;  // NDC-space gradient
+      grad_accum[idx] += std::sqrt(gx * gx + gy * gy);
+      grad_denom[idx] += 1;
+    }
+  });
 }
 
 void Trainer::Impl::move_row(size_t src, size_t dst) {

@@ -659,23 +659,40 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
   clock.lap(kStageRasterBwd);
 
   // 2. Reduce intersections to Gaussians in a fixed order (tile-major), so results are reproducible.
-  std::fill(m.acc_means2d, m.acc_means2d + 2 * n, 0.0f);
-  std::fill(m.acc_conics, m.acc_conics + 3 * n, 0.0f);
-  std::fill(m.acc_opacities, m.acc_opacities + n, 0.0f);
-  std::fill(m.acc_colors, m.acc_colors + 3 * n, 0.0f);
-  for (size_t k = 0; k < m.num_isects; ++k) {
-    const uint32_t g = uint32_t(m.keys[k]);
-    const float* v = m.v_splats + k * simd::kSplatStride;
-    m.acc_means2d[2 * g] += v[simd::kSplatMx];
-    m.acc_means2d[2 * g + 1] += v[simd::kSplatMy];
-    m.acc_conics[3 * g] += v[simd::kSplatA];
-    m.acc_conics[3 * g + 1] += v[simd::kSplatB];
-    m.acc_conics[3 * g + 2] += v[simd::kSplatC];
-    m.acc_opacities[g] += v[simd::kSplatOpacity];
-    m.acc_colors[3 * g] += v[simd::kSplatR];
-    m.acc_colors[3 * g + 1] += v[simd::kSplatG];
-    m.acc_colors[3 * g + 2] += v[simd::kSplatBlue];
-  }
+  // In parallel over contiguous ranges of Gaussian ids: each range scans all keys in order and
+  // adds only its own Gaussians' gradients, so every Gaussian sums its intersections in the same
+  // (tile-major) order as a serial pass, whatever the number of ranges.
+  const size_t reduce_ranges = m.pool ? size_t(m.pool->num_threads()) : 1;
+  auto reduce = [&](size_t rb, size_t re, int) {
+    for (size_t r = rb; r < re; ++r) {
+      const size_t g0 = r * n / reduce_ranges, g1 = (r + 1) * n / reduce_ranges;
+      std::fill(m.acc_means2d + 2 * g0, m.acc_means2d + 2 * g1, 0.0f);
+      std::fill(m.acc_conics + 3 * g0, m.acc_conics + 3 * g1, 0.0f);
+      std::fill(m.acc_opacities + g0, m.acc_opacities + g1, 0.0f);
+      std::fill(m.acc_colors + 3 * g0, m.acc_colors + 3 * g1, 0.0f);
+      const uint32_t span = uint32_t(g1 - g0);
+      for (size_t k = 0; k < m.num_isects; ++k) {
+        const uint32_t g = uint32_t(m.keys[k]);
+        if (g - uint32_t(g0) >= span) continue;  // another range's Gaussian (unsigned: also g < g0)
+        const float* v = m.v_splats + k * simd::kSplatStride;
+        m.acc_means2d[2 * g] += v[simd::kSplatMx];
+        m.acc_means2d[2 * g + 1] += v[simd::kSplatMy];
+        m.acc_conics[3 * g] += v[simd::kSplatA];
+        m.acc_conics[3 * g + 1] += v[simd::kSplatB];
+        m.acc_conics[3 * g + 2] += v[simd::kSplatC];
+        m.acc_opacities[g] += v[simd::kSplatOpacity];
+        m.acc_colors[3 * g] += v[simd::kSplatR];
+        m.acc_colors[3 * g + 1] += v[simd::kSplatG];
+        m.acc_colors[3 * g + 2] += v[simd::kSplatBlue];
+      }
+      // The per-Gaussian outputs that are plain copies of the sums, while they are in cache.
+      if (!params.sh && grads->v_colors)
+        std::memcpy(grads->v_colors + 3 * g0, m.acc_colors + 3 * g0, sizeof(float) * 3 * (g1 - g0));
+      if (grads->v_opacities) std::memcpy(grads->v_opacities + g0, m.acc_opacities + g0, sizeof(float) * (g1 - g0));
+      if (grads->v_means2d) std::memcpy(grads->v_means2d + 2 * g0, m.acc_means2d + 2 * g0, sizeof(float) * 2 * (g1 - g0));
+    }
+  };
+  run_parallel(m.pool, reduce_ranges, 1, reduce);
   clock.lap(kStageReduce);
 
   // 3. Projection backward in chunks; each chunk sums its own pose gradient, chunks are summed in order.
@@ -706,11 +723,7 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
       for (int k = 0; k < 3; ++k)
         grads->v_pose[k] -= double(R[k * 3] * v_campos[0] + R[k * 3 + 1] * v_campos[1] + R[k * 3 + 2] * v_campos[2]);
     }
-  } else if (grads->v_colors) {
-    std::memcpy(grads->v_colors, m.acc_colors, sizeof(float) * 3 * n);
-  }
-  if (grads->v_opacities) std::memcpy(grads->v_opacities, m.acc_opacities, sizeof(float) * n);
-  if (grads->v_means2d) std::memcpy(grads->v_means2d, m.acc_means2d, sizeof(float) * 2 * n);
+  }  // (v_colors without SH, v_opacities and v_means2d were copied in step 2)
   clock.lap(kStageProjectBwd);
   return Status::Ok();
 }

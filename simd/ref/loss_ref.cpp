@@ -5,6 +5,7 @@
 // sits 3 values away and values outside the row count as zero. The backward pulls the SSIM-map
 // cotangents back through the blurs with the transposed convolution, which for this symmetric
 // window with zero padding is the same zero-padded blur, so it reuses the two passes.
+#include <algorithm>
 #include <cmath>
 
 #include "gs/simd/loss.h"
@@ -88,9 +89,14 @@ void loss_fwd_ref(const LossParams* p, int32_t width, int32_t height, const T* i
   *out_ssim = sum_ssim / count;
 }
 
-template <class T>
-void loss_bwd_ref(const LossParams* p, int32_t width, int32_t height, const T* image, const T* target, double v_loss,
-                  T* scratch, T* v_image, double* out_l1, double* out_ssim) {
+namespace {
+
+// The backward over image rows [r0, r1) (loss_bwd_ref is r0 = 0, r1 = height): the cotangent rows
+// r0 - 5 .. r1 + 4 inside the image are computed; add_ssim(row, term) for each SSIM-map term of
+// the rows of [r0, r1) and add_l1(row, term) for each |d| of them, in increasing order.
+template <class T, class AddL1, class AddSsim>
+void loss_bwd_band(const LossParams* p, int32_t width, int32_t height, int32_t r0, int32_t r1, const T* image,
+                   const T* target, double v_loss, T* scratch, T* v_image, AddL1&& add_l1, AddSsim&& add_ssim) {
   T w[kSsimTaps];
   window_of(p, w);
   const T c1 = T(p->c1), c2 = T(p->c2);
@@ -107,16 +113,16 @@ void loss_bwd_ref(const LossParams* p, int32_t width, int32_t height, const T* i
   constexpr int kVg = kRing + 3 * kSsimTaps;
   auto ring = [&](int32_t k, int g) { return pl.row(kRing + 3 * (k % kSsimTaps) + g); };
   T* vg[3] = {pl.row(kVg), pl.row(kVg + 1), pl.row(kVg + 2)};
-  double sum_l1 = 0, sum_ssim = 0;
-  int32_t next = 0;  // next cotangent row to compute
-  for (int32_t r = 0; r < height; ++r) {
+  int32_t next = std::max(0, r0 - kSsimRadius);  // next cotangent row to compute
+  for (int32_t r = r0; r < r1; ++r) {
     for (; next < height && next <= r + kSsimRadius; ++next) {
       moments_vertical(w, pl.n, height, image, target, next, v);
       for (size_t i = 0; i < pl.n; ++i) {
         T m[kMoments];
         for (int q = 0; q < kMoments; ++q) m[q] = blur_horizontal(w, pl.n, v[q], i);
         T g_mx, g_exx, g_exy;
-        sum_ssim += double(ssim_elem_vjp(m[0], m[1], m[2], m[3], m[4], c1, c2, v_map, &g_mx, &g_exx, &g_exy));
+        const T s = ssim_elem_vjp(m[0], m[1], m[2], m[3], m[4], c1, c2, v_map, &g_mx, &g_exx, &g_exy);
+        if (next >= r0 && next < r1) add_ssim(next, double(s));
         ring(next, 0)[i] = g_mx;
         ring(next, 1)[i] = g_exx;
         ring(next, 2)[i] = g_exy;
@@ -144,11 +150,31 @@ void loss_bwd_ref(const LossParams* p, int32_t width, int32_t height, const T* i
       // d exx / dx = 2 x and d exy / dx = y at every window that covers this value.
       const T sgn = d > T(0) ? T(1) : (d < T(0) ? T(-1) : T(0));  // subgradient 0 at the kink
       v_image[e] = v_abs * sgn + (b_mx + (x + x) * b_exx + y * b_exy);
-      sum_l1 += double(std::fabs(d));
+      add_l1(r, double(std::fabs(d)));
     }
   }
+}
+
+}  // namespace
+
+template <class T>
+void loss_bwd_ref(const LossParams* p, int32_t width, int32_t height, const T* image, const T* target, double v_loss,
+                  T* scratch, T* v_image, double* out_l1, double* out_ssim) {
+  double sum_l1 = 0, sum_ssim = 0;  // double: sums of up to millions of O(1) terms
+  loss_bwd_band(p, width, height, 0, height, image, target, v_loss, scratch, v_image,
+                [&](int32_t, double t) { sum_l1 += t; }, [&](int32_t, double t) { sum_ssim += t; });
+  const double count = double(3 * size_t(width)) * double(height);
   if (out_l1) *out_l1 = sum_l1 / count;
   if (out_ssim) *out_ssim = sum_ssim / count;
+}
+
+template <class T>
+void loss_bwd_rows_ref(const LossParams* p, int32_t width, int32_t height, int32_t row_begin, int32_t row_end,
+                       const T* image, const T* target, double v_loss, T* scratch, T* v_image, double* row_l1,
+                       double* row_ssim) {
+  for (int32_t r = row_begin; r < row_end; ++r) row_l1[r] = row_ssim[r] = 0;
+  loss_bwd_band(p, width, height, row_begin, row_end, image, target, v_loss, scratch, v_image,
+                [&](int32_t r, double t) { row_l1[r] += t; }, [&](int32_t r, double t) { row_ssim[r] += t; });
 }
 
 template void loss_fwd_ref<float>(const LossParams*, int32_t, int32_t, const float*, const float*, float*, double*,
@@ -157,6 +183,10 @@ template void loss_fwd_ref<double>(const LossParams*, int32_t, int32_t, const do
                                    double*);
 template void loss_bwd_ref<float>(const LossParams*, int32_t, int32_t, const float*, const float*, double, float*,
                                   float*, double*, double*);
+template void loss_bwd_rows_ref<float>(const LossParams*, int32_t, int32_t, int32_t, int32_t, const float*,
+                                       const float*, double, float*, float*, double*, double*);
+template void loss_bwd_rows_ref<double>(const LossParams*, int32_t, int32_t, int32_t, int32_t, const double*,
+                                        const double*, double, double*, double*, double*, double*);
 template void loss_bwd_ref<double>(const LossParams*, int32_t, int32_t, const double*, const double*, double, double*,
                                    double*, double*, double*);
 

@@ -285,3 +285,59 @@ TEST_CASE("loss kernels scale the gradient by the upstream cotangent / ref") {
 GS_SIMD_TEST_CASE(loss_cotangent_scaling, "loss kernels scale the gradient by the upstream cotangent") {
   check_cotangent_scaling(kt);
 }
+
+// loss_bwd_rows: bands of rows (any split, each band with its own scratch) give loss_bwd's
+// gradient bit for bit, and the per-row sums added in row order give its means: bit for bit in
+// the SIMD kernels (they sum per row too), to rounding in the reference (one running sum).
+static void check_row_bands(const gs::simd::KernelTable* kt, bool exact_sums) {
+  const std::string isa = kt->isa;
+  CAPTURE(isa);
+  const LossParams p = gs::simd::make_loss_params();
+  for (SizeCase s : {SizeCase{1, 1}, SizeCase{17, 13}, SizeCase{64, 48}}) {
+    const int W = s.W, H = s.H;
+    CAPTURE(W);
+    CAPTURE(H);
+    std::mt19937_64 rng(uint64_t(W * 7 + H));
+    std::vector<float> image, target;
+    random_pair(rng, W, H, 0.1, &image, &target);
+    std::vector<float> scratch(gs::simd::loss_scratch_floats(W, H)), whole(image.size());
+    double l1 = 0, ssim = 0;
+    kt->loss_bwd(&p, W, H, image.data(), target.data(), 1.0, scratch.data(), whole.data(), &l1, &ssim);
+    for (int bands : {1, 2, 3, 7, H}) {
+      if (bands > H) continue;
+      CAPTURE(bands);
+      std::vector<float> banded(image.size() + 1, kCanary);
+      std::vector<double> row_l1(size_t(H) + 1, -1.0), row_ssim(size_t(H) + 1, -1.0);
+      // Bands run last to first with a fresh scratch each, so no band leans on what another left.
+      for (int b = bands - 1; b >= 0; --b) {
+        std::vector<float> own(scratch.size(), std::numeric_limits<float>::quiet_NaN());
+        kt->loss_bwd_rows(&p, W, H, H * b / bands, H * (b + 1) / bands, image.data(), target.data(), 1.0, own.data(),
+                          banded.data(), row_l1.data(), row_ssim.data());
+      }
+      CHECK(banded.back() == kCanary);
+      CHECK(row_l1.back() == -1.0);
+      CHECK(row_ssim.back() == -1.0);
+      size_t differ = 0;
+      for (size_t e = 0; e < whole.size(); ++e) differ += banded[e] != whole[e];
+      CHECK(differ == 0);
+      double sum_l1 = 0, sum_ssim = 0;
+      for (int r = 0; r < H; ++r) sum_l1 += row_l1[size_t(r)], sum_ssim += row_ssim[size_t(r)];
+      const double count = 3.0 * W * H;
+      if (exact_sums) {
+        CHECK(sum_l1 / count == l1);
+        CHECK(sum_ssim / count == ssim);
+      } else {
+        CHECK(std::fabs(sum_l1 / count - l1) <= 1e-12);
+        CHECK(std::fabs(sum_ssim / count - ssim) <= 1e-12);
+      }
+    }
+  }
+}
+
+TEST_CASE("loss kernels in bands of rows match the whole-image backward / ref") {
+  check_row_bands(&gs::simd::ref_kernel_table(), /*exact_sums=*/false);
+}
+
+GS_SIMD_TEST_CASE(loss_row_bands, "loss kernels in bands of rows match the whole-image backward") {
+  check_row_bands(kt, /*exact_sums=*/true);
+}

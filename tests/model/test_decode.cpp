@@ -499,5 +499,82 @@ TEST_CASE("decode: visibility pre-filter excludes anchors behind and outside and
   visibility_cases(rot);
 }
 
+
+// The step graph runs decoding in ranges of visible anchors (in parallel) and joins them in order:
+// every split must give the one-pass results exactly.
+TEST_CASE("decode: ranges of visible anchors joined in order equal one pass forward and backward") {
+  Problem p(3);
+  const AnchorParams<double> a = p.anchors();
+  const size_t V = p.V(), K = size_t(p.k), S = V * K;
+  Decoded whole(S);
+  decode_fwd(a, p.rows.data(), V, p.y_op.data(), p.y_cov.data(), p.y_col.data(), &whole.ng);
+  // Gradients of the kept Gaussians (any values), and the one-pass backward.
+  std::vector<double> g_mean(3 * S), g_ls(3 * S), g_q(4 * S), g_op(S), g_col(3 * S);
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (auto* g : {&g_mean, &g_ls, &g_q, &g_op, &g_col})
+    for (double& x : *g) x = u(rng);
+  const GaussianGradsT<double> gg{g_mean.data(), g_ls.data(), g_q.data(), g_op.data(), g_col.data()};
+  struct Bwd {
+    std::vector<double> v_op, v_cov, v_col, v_off, v_ls;
+  };
+  auto fresh = [&]() {
+    Bwd b{std::vector<double>(S, 7.0), std::vector<double>(7 * S, 7.0), std::vector<double>(3 * S, 7.0),
+          std::vector<double>(p.offsets.size(), 0.5), std::vector<double>(p.log_scales.size(), 0.5)};
+    return b;
+  };
+  Bwd one = fresh();
+  decode_bwd(a, p.rows.data(), V, p.y_cov.data(), whole.ng, gg, one.v_op.data(), one.v_cov.data(), one.v_col.data(),
+             one.v_off.data(), one.v_ls.data());
+  for (size_t parts = 1; parts <= V; ++parts) {
+    CAPTURE(parts);
+    Decoded split(S);
+    size_t n = 0;
+    for (size_t i = 0; i < parts; ++i) {
+      const size_t v0 = i * V / parts, v1 = (i + 1) * V / parts;
+      const size_t kept = count_kept_range(p.k, v0, v1, p.y_op.data(), p.y_cov.data());
+      CHECK(decode_fwd_range(a, p.rows.data(), v0, v1, p.y_op.data(), p.y_cov.data(), p.y_col.data(), n, &split.ng) ==
+            kept);
+      n += kept;
+    }
+    split.ng.count = n;
+    REQUIRE(n == whole.ng.count);
+    CHECK(split.means == whole.means);
+    CHECK(split.log_scales == whole.log_scales);
+    CHECK(split.quats == whole.quats);
+    CHECK(split.opacities == whole.opacities);
+    CHECK(split.colors == whole.colors);
+    CHECK(split.source == whole.source);
+    Bwd b = fresh();
+    for (size_t i = parts; i-- > 0;)  // last range first: no range may rely on another's order
+      decode_bwd_range(a, p.rows.data(), i * V / parts, (i + 1) * V / parts, p.y_cov.data(), split.ng, gg,
+                       b.v_op.data(), b.v_cov.data(), b.v_col.data(), b.v_off.data(), b.v_ls.data());
+    CHECK(b.v_op == one.v_op);
+    CHECK(b.v_cov == one.v_cov);
+    CHECK(b.v_col == one.v_col);
+    CHECK(b.v_off == one.v_off);
+    CHECK(b.v_ls == one.v_ls);
+  }
+  // Visibility in ranges: each range's rows, concatenated, are the one-pass rows.
+  Camera cam;
+  cam.intr.fx = cam.intr.fy = 40.0f;  // a small image: some anchors fall outside it
+  cam.intr.cx = 8.0f;
+  cam.intr.cy = 6.0f;
+  cam.intr.width = 16;
+  cam.intr.height = 12;
+  cam.pose.t[2] = 6.0f;
+  std::vector<uint32_t> all(p.M), joined;
+  const size_t visible = select_visible_anchors(cam, a, all.data());
+  all.resize(visible);
+  MESSAGE("visible anchors: " << visible << " of " << p.M);
+  REQUIRE(visible > 0);
+  for (size_t b = 0; b < p.M; b += 3) {
+    std::vector<uint32_t> part(3);
+    part.resize(select_visible_anchor_range(cam, a, b, std::min(p.M, b + 3), part.data()));
+    joined.insert(joined.end(), part.begin(), part.end());
+  }
+  CHECK(joined == all);
+}
+
 }  // namespace
 }  // namespace gs::model

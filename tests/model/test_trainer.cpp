@@ -587,6 +587,24 @@ TEST_CASE("trainer: masked views on a random background resume bit-identically (
   check_resume(&pool, o, masked);
 }
 
+TEST_CASE("trainer: results do not depend on the thread count (masked views, densification, poses)") {
+  static const test::TrainScene masked(true);
+  const TrainOptions o = busy_options(30);
+  const HybridModel m0 = initial_model(config());
+  auto one = make_trainer(m0, o, nullptr, masked);
+  const RunResult serial = run(one, 30);
+  for (int threads : {2, 3}) {
+    CAPTURE(threads);
+    platform::ThreadPool pool(threads);
+    auto t = make_trainer(m0, o, &pool, masked);
+    const RunResult r = run(t, 30);
+    CHECK(r.loss == serial.loss);
+    CHECK(r.model == serial.model);
+    CHECK(r.poses == serial.poses);
+  }
+  MESSAGE("anchors at the end: " << one->model().anchor_count);
+}
+
 // A schedule that follows the run's length n (the test's own rule, in the spirit of the job's
 // set_run_length): statistics from n/8, growth every 2 iterations from n/4 to n/2, pose warm-up over
 // n/4, two coarse levels over the first half.

@@ -61,6 +61,31 @@ struct LossKernels {
 
   static void bwd(const LossParams* p, int32_t width, int32_t height, const float* image, const float* target,
                   double v_loss, float* scratch, float* v_image, double* out_l1, double* out_ssim) {
+    const double count = double(3 * size_t(width)) * double(height);
+    double sum_l1 = 0, sum_ssim = 0;
+    bwd_band(p, width, height, 0, height, image, target, v_loss, scratch, v_image,
+             [&](int32_t, double l1) { sum_l1 += l1; }, [&](int32_t, double ssim) { sum_ssim += ssim; });
+    if (out_l1) *out_l1 = sum_l1 / count;
+    if (out_ssim) *out_ssim = sum_ssim / count;
+  }
+
+  // Rows [row_begin, row_end) of bwd (see loss.h): v_image of those rows, and each row's partial
+  // sums of |d| and of the SSIM map (the terms bwd adds in row order) into row_l1 / row_ssim.
+  static void bwd_rows(const LossParams* p, int32_t width, int32_t height, int32_t row_begin, int32_t row_end,
+                       const float* image, const float* target, double v_loss, float* scratch, float* v_image,
+                       double* row_l1, double* row_ssim) {
+    bwd_band(p, width, height, row_begin, row_end, image, target, v_loss, scratch, v_image,
+             [&](int32_t r, double l1) { row_l1[r] = l1; }, [&](int32_t r, double ssim) { row_ssim[r] = ssim; });
+  }
+
+ private:
+  // The backward over image rows [r0, r1): the cotangent rows r0 - 5 .. r1 + 4 (inside the image)
+  // are computed, those of [r0, r1) reported through add_ssim(row, partial sum); add_l1(row, sum)
+  // for each row of [r0, r1). Both in increasing row order.
+  template <class AddL1, class AddSsim>
+  static void bwd_band(const LossParams* p, int32_t width, int32_t height, int32_t r0, int32_t r1, const float* image,
+                       const float* target, double v_loss, float* scratch, float* v_image, AddL1&& add_l1,
+                       AddSsim&& add_ssim) {
     const Ctx c(p, width, scratch);
     const double count = double(c.n) * double(height);
     const B v_map(float(-p->lambda * v_loss / count));
@@ -70,9 +95,8 @@ struct LossKernels {
     constexpr int kRing = kMoments, kVg = kRing + 3 * kSsimTaps;
     auto ring = [&](int32_t k, int g) { return c.row(kRing + 3 * (k % kSsimTaps) + g); };
     float* vg[3] = {c.row(kVg), c.row(kVg + 1), c.row(kVg + 2)};
-    double sum_l1 = 0, sum_ssim = 0;
-    int32_t next = 0;  // next cotangent row to compute (rows r - 5 .. r + 5 live in the ring)
-    for (int32_t r = 0; r < height; ++r) {
+    int32_t next = scalar::max(0, r0 - kSsimRadius);  // next cotangent row (rows r - 5 .. r + 5 live in the ring)
+    for (int32_t r = r0; r < r1; ++r) {
       for (; next < height && next <= r + kSsimRadius; ++next) {
         moments_vertical(c, height, image, target, next, v);
         B acc_ssim(0.0f);
@@ -92,7 +116,7 @@ struct LossKernels {
           store_n(g2 + i, g_exy, cnt);
           acc_ssim += cnt == size_t(N) ? s : xsimd::select(lane_below(cnt), s, B(0.0f));
         }
-        sum_ssim += double(xsimd::hadd(acc_ssim));
+        if (next >= r0 && next < r1) add_ssim(next, double(xsimd::hadd(acc_ssim)));
       }
       // Transposed blur, vertical pass: scratch rows are readable (and zero) past the row end.
       // Row pointers are resolved once per row (nullptr = outside the image).
@@ -127,13 +151,10 @@ struct LossKernels {
         store_n(v_image + e, v_abs * sgn + (b_mx + (x + x) * b_exx + y * b_exy), cnt);
         acc_l1 += xsimd::abs(d);
       }
-      sum_l1 += double(xsimd::hadd(acc_l1));
+      add_l1(r, double(xsimd::hadd(acc_l1)));
     }
-    if (out_l1) *out_l1 = sum_l1 / count;
-    if (out_ssim) *out_ssim = sum_ssim / count;
   }
 
- private:
   static constexpr int kMoments = 5;  // B(x), B(y), B(x^2), B(y^2), B(x y)
 
   struct Ctx {

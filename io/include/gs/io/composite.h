@@ -8,13 +8,18 @@
 
 #include "gs/io/image.h"
 
+namespace gs::platform {
+class ThreadPool;
+}
+
 namespace gs::io {
 
 // Training target at resolution divisor s: the mean of each s x s block of the composite, floats in
 // [0, 1], [H / s, W / s, 3] (the grid of box_downsample_rgb; equal to it without a mask).
 // image: RGB; mask: 1 channel of the image's size, or empty. background: [3] in [0, 1]. No
-// allocation.
-void composite_target(const Image8& image, const Image8& mask, int s, const float background[3], float* out);
+// allocation. pool: bands of rows in parallel (same result; null: the calling thread).
+void composite_target(const Image8& image, const Image8& mask, int s, const float background[3], float* out,
+                      platform::ThreadPool* pool = nullptr);
 
 // The composite at full resolution rounded to 8 bits (what evaluation compares renders with); the
 // image itself (a copy) without a mask.

@@ -72,14 +72,16 @@ inline void camera_centre(const Pose& pose, double c[3]) {
 
 // Visibility pre-filter: the anchor as an isotropic blob of radius 3 max(s[0:3]) must be in front
 // of the camera (z > 0.2, the renderer's near plane) and its projected disc must touch the image.
-// Writes the visible anchor rows in increasing order (rows null: only counts them); returns V.
+// Writes the visible rows among anchors [begin, end) in increasing order (rows null: only counts
+// them); returns their count. (The step graph runs ranges in parallel and joins them: step_graph.h.)
 template <class T>
-size_t select_visible_anchors(const Camera& cam, const AnchorParams<T>& a, uint32_t* rows) {
+size_t select_visible_anchor_range(const Camera& cam, const AnchorParams<T>& a, size_t begin, size_t end,
+                                   uint32_t* rows) {
   size_t V = 0;
   const float* R = cam.pose.R;
   const float* t = cam.pose.t;
   const double fmax = std::max(cam.intr.fx, cam.intr.fy);
-  for (size_t i = 0; i < a.count; ++i) {
+  for (size_t i = begin; i < end; ++i) {
     const T* p = a.positions + 3 * i;
     const double x = R[0] * double(p[0]) + R[1] * double(p[1]) + R[2] * double(p[2]) + t[0];
     const double y = R[3] * double(p[0]) + R[4] * double(p[1]) + R[5] * double(p[2]) + t[1];
@@ -96,14 +98,21 @@ size_t select_visible_anchors(const Camera& cam, const AnchorParams<T>& a, uint3
   return V;
 }
 
+// All anchors: writes the visible anchor rows in increasing order (rows null: only counts); returns V.
+template <class T>
+size_t select_visible_anchors(const Camera& cam, const AnchorParams<T>& a, uint32_t* rows) {
+  return select_visible_anchor_range(cam, a, 0, a.count, rows);
+}
+
 // Decoder input X [V, D] = [f ; g ; (a - C) / |a - C| ; |a - C|], g [V, G] may be null when G = 0.
 // The distance is floored at 1e-6 so an anchor at the camera centre gives a finite direction.
+// build_decoder_input_range fills the rows [v0, v1) of X only.
 template <class T>
-void build_decoder_input(const AnchorParams<T>& a, const uint32_t* rows, size_t V, const T* g, int G,
-                         const double centre[3], T* X) {
+void build_decoder_input_range(const AnchorParams<T>& a, const uint32_t* rows, size_t v0, size_t v1, const T* g,
+                               int G, const double centre[3], T* X) {
   const int F = a.feature_dim;
   const size_t D = size_t(F + G + 4);
-  for (size_t v = 0; v < V; ++v) {
+  for (size_t v = v0; v < v1; ++v) {
     T* x = X + v * D;
     const size_t row = rows[v];
     std::copy(a.features + row * size_t(F), a.features + (row + 1) * size_t(F), x);
@@ -114,6 +123,12 @@ void build_decoder_input(const AnchorParams<T>& a, const uint32_t* rows, size_t 
     for (int c = 0; c < 3; ++c) x[F + G + c] = T(d[c] / dist);
     x[F + G + 3] = T(dist);
   }
+}
+
+template <class T>
+void build_decoder_input(const AnchorParams<T>& a, const uint32_t* rows, size_t V, const T* g, int G,
+                         const double centre[3], T* X) {
+  build_decoder_input_range(a, rows, 0, V, g, G, centre, X);
 }
 
 // Backward of the direction and distance columns of build_decoder_input w.r.t. the camera centre
@@ -154,25 +169,42 @@ inline T sigmoid(T u) {
   return T(1) / (T(1) + std::exp(-u));
 }
 
+// Whether candidate s = v k + j becomes a Gaussian: opacity > 0 and |u_q|^2 > 1e-24.
+template <class T>
+inline bool kept_candidate(const T* y_opacity, const T* y_cov, size_t s) {
+  const T* c = y_cov + 7 * s;
+  const T qn = c[3] * c[3] + c[4] * c[4] + c[5] * c[5] + c[6] * c[6];
+  return y_opacity[s] > T(0) && qn > T(1e-24);
+}
+
+// How many candidates of the visible anchors [v0, v1) are kept.
+template <class T>
+size_t count_kept_range(int k, size_t v0, size_t v1, const T* y_opacity, const T* y_cov) {
+  size_t n = 0;
+  for (size_t s = v0 * size_t(k); s < v1 * size_t(k); ++s) n += kept_candidate(y_opacity, y_cov, s) ? 1 : 0;
+  return n;
+}
+
 // Forward: kept Gaussians of the V visible anchors. mean = a + O_j * exp(l[0:3]);
 // log-scale = l[3:6] + log sigmoid(u_s); quaternion = u_q (candidates with |u_q|^2 <= 1e-24 are
 // dropped: they have no orientation); opacity = tanh output; colour = sigmoid output.
+// decode_fwd_range decodes the visible anchors [v0, v1) into out's rows from n0 on (n0: the kept
+// count of the anchors before v0) and returns the number it wrote; it leaves out->count alone.
 template <class T>
-size_t decode_fwd(const AnchorParams<T>& a, const uint32_t* rows, size_t V, const T* y_opacity, const T* y_cov,
-                  const T* y_color, NeuralGaussians<T>* out) {
+size_t decode_fwd_range(const AnchorParams<T>& a, const uint32_t* rows, size_t v0, size_t v1, const T* y_opacity,
+                        const T* y_cov, const T* y_color, size_t n0, NeuralGaussians<T>* out) {
   const int k = a.k;
-  size_t n = 0;
-  for (size_t v = 0; v < V; ++v) {
+  size_t n = n0;
+  for (size_t v = v0; v < v1; ++v) {
     const size_t row = rows[v];
     const T* pos = a.positions + 3 * row;
     const T* ls = a.log_scales + 6 * row;
     const T os[3] = {std::exp(ls[0]), std::exp(ls[1]), std::exp(ls[2])};
     for (int j = 0; j < k; ++j) {
       const size_t s = v * size_t(k) + size_t(j);
+      if (!kept_candidate(y_opacity, y_cov, s)) continue;
       const T alpha = y_opacity[s];
       const T* c = y_cov + 7 * s;
-      const T qn = c[3] * c[3] + c[4] * c[4] + c[5] * c[5] + c[6] * c[6];
-      if (!(alpha > T(0)) || !(qn > T(1e-24))) continue;
       const T* off = a.offsets + (row * size_t(k) + size_t(j)) * 3;
       for (int l = 0; l < 3; ++l) {
         out->means[3 * n + l] = pos[l] + off[l] * os[l];
@@ -185,8 +217,14 @@ size_t decode_fwd(const AnchorParams<T>& a, const uint32_t* rows, size_t V, cons
       ++n;
     }
   }
-  out->count = n;
-  return n;
+  return n - n0;
+}
+
+template <class T>
+size_t decode_fwd(const AnchorParams<T>& a, const uint32_t* rows, size_t V, const T* y_opacity, const T* y_cov,
+                  const T* y_color, NeuralGaussians<T>* out) {
+  out->count = decode_fwd_range(a, rows, 0, V, y_opacity, y_cov, y_color, 0, out);
+  return out->count;
 }
 
 // Gradients of the kept Gaussians (any pointer non-null; [N, 3] / [N, 3] / [N, 4] / [N] / [N, 3]).
@@ -201,16 +239,22 @@ struct GaussianGradsT {
 
 // Backward of decode_fwd. Overwrites v_y_opacity [V, k], v_y_cov [V, k, 7], v_y_color [V, k, 3]
 // (zero for dropped candidates) and ACCUMULATES into the anchor gradients v_offsets [M, k, 3] and
-// v_anchor_log_scales [M, 6] at the visible rows.
+// v_anchor_log_scales [M, 6] at the visible rows. decode_bwd_range does the visible anchors
+// [v0, v1) only (their kept Gaussians, found in ng.source, which increases); the rows are
+// distinct, so ranges touch disjoint gradients and may run in parallel.
 template <class T>
-void decode_bwd(const AnchorParams<T>& a, const uint32_t* rows, size_t V, const T* y_cov,
-                const NeuralGaussians<T>& ng, const GaussianGradsT<T>& g, T* v_y_opacity, T* v_y_cov,
-                T* v_y_color, T* v_offsets, T* v_anchor_log_scales) {
+void decode_bwd_range(const AnchorParams<T>& a, const uint32_t* rows, size_t v0, size_t v1, const T* y_cov,
+                      const NeuralGaussians<T>& ng, const GaussianGradsT<T>& g, T* v_y_opacity, T* v_y_cov,
+                      T* v_y_color, T* v_offsets, T* v_anchor_log_scales) {
   const size_t k = size_t(a.k);
-  std::fill(v_y_opacity, v_y_opacity + V * k, T(0));
-  std::fill(v_y_cov, v_y_cov + V * k * 7, T(0));
-  std::fill(v_y_color, v_y_color + V * k * 3, T(0));
-  for (size_t n = 0; n < ng.count; ++n) {
+  std::fill(v_y_opacity + v0 * k, v_y_opacity + v1 * k, T(0));
+  std::fill(v_y_cov + v0 * k * 7, v_y_cov + v1 * k * 7, T(0));
+  std::fill(v_y_color + v0 * k * 3, v_y_color + v1 * k * 3, T(0));
+  const uint32_t* src = ng.source;
+  const uint32_t* src_end = src + ng.count;
+  const size_t n0 = size_t(std::lower_bound(src, src_end, uint32_t(v0 * k)) - src);
+  const size_t n1 = size_t(std::lower_bound(src + n0, src_end, uint32_t(v1 * k)) - src);
+  for (size_t n = n0; n < n1; ++n) {
     const size_t s = ng.source[n];
     const size_t v = s / k, j = s % k;
     const size_t row = rows[v];
@@ -232,6 +276,13 @@ void decode_bwd(const AnchorParams<T>& a, const uint32_t* rows, size_t V, const 
     }
     for (int l = 0; l < 4; ++l) v_y_cov[7 * s + 3 + l] = g.v_quats[4 * n + l];
   }
+}
+
+template <class T>
+void decode_bwd(const AnchorParams<T>& a, const uint32_t* rows, size_t V, const T* y_cov,
+                const NeuralGaussians<T>& ng, const GaussianGradsT<T>& g, T* v_y_opacity, T* v_y_cov,
+                T* v_y_color, T* v_offsets, T* v_anchor_log_scales) {
+  decode_bwd_range(a, rows, 0, V, y_cov, ng, g, v_y_opacity, v_y_cov, v_y_color, v_offsets, v_anchor_log_scales);
 }
 
 // Volume regulariser weight * mean over kept Gaussians of s_x s_y s_z (the reference code's form);

@@ -25,6 +25,7 @@
 #include "gs/camera.h"
 #include "gs/model/decode.h"
 #include "gs/model/hybrid_model.h"
+#include "gs/platform/thread_pool.h"
 #include "gs/render.h"
 #include "gs/simd/loss.h"
 #include "gs/stage_times.h"
@@ -122,31 +123,125 @@ struct StepWorkspace : NeuralGaussianBuffers<T> {
   }
 };
 
+namespace detail {
+
+// The Backend's thread pool (Backend::pool()), or null for a backend without one (the scalar
+// references of the tests): the step graph's own loops then run on the calling thread.
+template <class Backend>
+auto backend_pool(Backend& be, int) -> decltype(be.pool()) {
+  return be.pool();
+}
+template <class Backend>
+platform::ThreadPool* backend_pool(Backend&, long) {
+  return nullptr;
+}
+
+// Splits [0, n) into `parts` contiguous ranges (part i is [i n / parts, (i + 1) n / parts)).
+inline size_t part_begin(size_t n, size_t parts, size_t i) { return i * n / parts; }
+
+// How many ranges a loop of n items is split into: a few per thread (they are claimed
+// dynamically), none smaller than min_items, at most kMaxParts. Every loop split this way writes
+// disjoint outputs or joins its ranges in order, so results do not depend on the split.
+constexpr size_t kMaxParts = 64;
+inline size_t part_count(platform::ThreadPool* pool, size_t n, size_t min_items) {
+  if (!pool || pool->num_threads() <= 1 || n < 2 * min_items) return 1;
+  return std::min({kMaxParts, size_t(4 * pool->num_threads()), n / min_items});
+}
+
+// f(part, begin, end) for each of `parts` ranges of [0, n), on the pool when there is one.
+template <class F>
+void for_parts(platform::ThreadPool* pool, size_t n, size_t parts, F&& f) {
+  auto body = [&](size_t b, size_t e, int) {
+    for (size_t i = b; i < e; ++i) f(i, part_begin(n, parts, i), part_begin(n, parts, i + 1));
+  };
+  if (pool && parts > 1)
+    pool->parallel_for(parts, 1, body);
+  else
+    body(0, parts, 0);
+}
+
+// f(begin, end) over [0, n) split by part_count.
+template <class F>
+void parallel_ranges(platform::ThreadPool* pool, size_t n, size_t min_items, F&& f) {
+  if (n == 0) return;
+  for_parts(pool, n, part_count(pool, n, min_items), [&](size_t, size_t b, size_t e) { f(b, e); });
+}
+
+}  // namespace detail
+
 // Forward up to the kept neural Gaussians of one view (ws.ng); returns N and sets *visible = V.
+// The anchor loops run over the backend's pool (if any) with the results of one thread:
+// visibility and decoding are done per range and joined in range order.
 template <class T, class Backend>
 size_t decode_view(Backend& be, const ModelParamsT<T>& p, const Camera& cam, StepWorkspace<T>& ws, size_t* visible) {
   const AnchorParams<T>& a = p.anchors;
   const int G = p.image_feature_dim;
+  const int k = a.k;
   const simd::MlpShape* sh = p.shapes;
   StageClock clock(ws.stage_times);
-  const size_t V = select_visible_anchors(cam, a, ws.rows.data());
+  platform::ThreadPool* pool = detail::backend_pool(be, 0);
+  uint32_t* rows = ws.rows.data();
+  size_t part_size[detail::kMaxParts];
+
+  // Visible anchors: each range writes its rows from its own first index on, then the ranges are
+  // moved together in order (a range's rows never move past its start, so memmove in order is safe).
+  size_t parts = detail::part_count(pool, a.count, 2048);
+  detail::for_parts(pool, a.count, parts, [&](size_t i, size_t b, size_t e) {
+    part_size[i] = select_visible_anchor_range(cam, a, b, e, rows + b);
+  });
+  size_t V = parts > 0 && a.count > 0 ? part_size[0] : 0;
+  for (size_t i = 1; i < parts; ++i) {
+    const size_t b = detail::part_begin(a.count, parts, i);
+    if (part_size[i] > 0 && V != b) std::copy(rows + b, rows + b + part_size[i], rows + V);
+    V += part_size[i];
+  }
   clock.lap(kStageAnchorSelect);
-  const uint32_t* rows = ws.rows.data();
+
+  double centre[3];
+  camera_centre(cam.pose, centre);
+  const T* raw_src = p.image_raw;
+  T* raw = ws.raw.data();
   if (G > 0) {
-    for (size_t v = 0; v < V; ++v)
-      std::copy(p.image_raw + size_t(rows[v]) * kImageRawDim, p.image_raw + (size_t(rows[v]) + 1) * kImageRawDim,
-                ws.raw.data() + v * kImageRawDim);
+    detail::parallel_ranges(pool, V, 1024, [&](size_t b, size_t e) {
+      for (size_t v = b; v < e; ++v)
+        std::copy(raw_src + size_t(rows[v]) * kImageRawDim, raw_src + (size_t(rows[v]) + 1) * kImageRawDim,
+                  raw + v * kImageRawDim);
+    });
     be.mlp_fwd(sh[kMlpImage], int32_t(V), ws.raw.data(), p.mlp[kMlpImage], ws.img_hidden.data(), ws.g.data());
     clock.lap(kStageImageMlpFwd);
   }
-  double centre[3];
-  camera_centre(cam.pose, centre);
-  build_decoder_input(a, rows, V, G > 0 ? ws.g.data() : static_cast<const T*>(nullptr), G, centre, ws.X.data());
+  const T* g = G > 0 ? ws.g.data() : static_cast<const T*>(nullptr);
+  detail::parallel_ranges(pool, V, 512, [&](size_t b, size_t e) {
+    build_decoder_input_range(a, rows, b, e, g, G, centre, ws.X.data());
+  });
   clock.lap(kStageDecoderInput);
   for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden[m].data(), ws.y[m].data());
   clock.lap(kStageDecoderMlpFwd);
   *visible = V;
-  const size_t N = decode_fwd(a, rows, V, ws.y[kMlpOpacity].data(), ws.y[kMlpCov].data(), ws.y[kMlpColor].data(), &ws.ng);
+
+  // Kept Gaussians: count per range, then each range decodes from its offset (the order of one pass).
+  const T* y_op = ws.y[kMlpOpacity].data();
+  const T* y_cov = ws.y[kMlpCov].data();
+  const T* y_col = ws.y[kMlpColor].data();
+  parts = detail::part_count(pool, V, 256);
+  if (parts <= 1) {
+    ws.ng.count = decode_fwd_range(a, rows, 0, V, y_op, y_cov, y_col, 0, &ws.ng);
+    clock.lap(kStageDecodeFwd);
+    return ws.ng.count;
+  }
+  detail::for_parts(pool, V, parts, [&](size_t i, size_t b, size_t e) {
+    part_size[i] = count_kept_range(k, b, e, y_op, y_cov);
+  });
+  size_t part_offset[detail::kMaxParts];
+  size_t N = 0;
+  for (size_t i = 0; i < parts; ++i) {
+    part_offset[i] = N;
+    N += part_size[i];
+  }
+  detail::for_parts(pool, V, parts, [&](size_t i, size_t b, size_t e) {
+    decode_fwd_range(a, rows, b, e, y_op, y_cov, y_col, part_offset[i], &ws.ng);
+  });
+  ws.ng.count = N;
   clock.lap(kStageDecodeFwd);
   return N;
 }
@@ -162,6 +257,7 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   const int G = p.image_feature_dim, F = a.feature_dim;
   const simd::MlpShape* sh = p.shapes;
   const size_t D = size_t(sh[kMlpOpacity].in);
+  platform::ThreadPool* pool = detail::backend_pool(be, 0);
 
   size_t V = 0;
   const size_t N = decode_view(be, p, cam, ws, &V);
@@ -185,14 +281,23 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   GS_RETURN_IF_ERROR(be.render_bwd(ws.v_rgb.data(), ws.v_means.data(), ws.v_log_scales.data(), ws.v_quats.data(),
                                    ws.v_opacities.data(), ws.v_colors.data(), ws.v_means2d.data(), v_pose));
   clock.restart();
-  for (size_t i = 0; i < 3 * N; ++i) ws.v_log_scales[i] += ws.v_ls_volume[i];
+  {
+    T* v_ls = ws.v_log_scales.data();
+    const T* v_vol = ws.v_ls_volume.data();
+    detail::parallel_ranges(pool, 3 * N, 8192, [&](size_t b, size_t e) {
+      for (size_t i = b; i < e; ++i) v_ls[i] += v_vol[i];
+    });
+  }
   clock.lap(kStageLoss);
 
-  // Decode backward: MLP output gradients and the anchor offset / log-scale gradients.
+  // Decode backward: MLP output gradients and the anchor offset / log-scale gradients (ranges of
+  // visible anchors own distinct rows, so they run in parallel with the serial pass's sums).
   const GaussianGradsT<T> gg{ws.v_means.data(), ws.v_log_scales.data(), ws.v_quats.data(), ws.v_opacities.data(),
                              ws.v_colors.data()};
-  decode_bwd(a, rows, V, ws.y[kMlpCov].data(), ws.ng, gg, ws.v_y[kMlpOpacity].data(), ws.v_y[kMlpCov].data(),
-             ws.v_y[kMlpColor].data(), grads->offsets, grads->log_scales);
+  detail::parallel_ranges(pool, V, 256, [&](size_t b, size_t e) {
+    decode_bwd_range(a, rows, b, e, ws.y[kMlpCov].data(), ws.ng, gg, ws.v_y[kMlpOpacity].data(),
+                     ws.v_y[kMlpCov].data(), ws.v_y[kMlpColor].data(), grads->offsets, grads->log_scales);
+  });
   clock.lap(kStageDecodeBwd);
 
   // Decoder MLPs: weight gradients accumulate; input gradients sum over the three.
@@ -200,8 +305,13 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
     T* v_x = m == 0 ? ws.v_X.data() : ws.v_x_tmp.data();
     be.mlp_bwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden[m].data(), ws.y[m].data(), ws.v_y[m].data(), v_x,
                grads->mlp[m]);
-    if (m > 0)
-      for (size_t i = 0; i < V * D; ++i) ws.v_X[i] += ws.v_x_tmp[i];
+    if (m > 0) {
+      T* v_X = ws.v_X.data();
+      const T* v_tmp = ws.v_x_tmp.data();
+      detail::parallel_ranges(pool, V * D, 8192, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) v_X[i] += v_tmp[i];
+      });
+    }
   }
   clock.lap(kStageMlpBwd);
 
@@ -215,15 +325,23 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
     clock.lap(kStageDecodeBwd);  // the decoder input's camera-centre gradient
   }
   // Anchor features and the image-feature MLP.
-  if (grads->features)
-    for (size_t v = 0; v < V; ++v) {
-      T* dst = grads->features + size_t(rows[v]) * size_t(F);
-      const T* src = ws.v_X.data() + v * D;
-      for (int c = 0; c < F; ++c) dst[c] += src[c];
-    }
+  // (Per visible anchor: the rows are distinct, so ranges run in parallel.)
+  const T* v_X = ws.v_X.data();
+  if (grads->features) {
+    T* features = grads->features;
+    detail::parallel_ranges(pool, V, 512, [&](size_t b, size_t e) {
+      for (size_t v = b; v < e; ++v) {
+        T* dst = features + size_t(rows[v]) * size_t(F);
+        const T* src = v_X + v * D;
+        for (int c = 0; c < F; ++c) dst[c] += src[c];
+      }
+    });
+  }
   if (G > 0) {
-    for (size_t v = 0; v < V; ++v)
-      std::copy(ws.v_X.data() + v * D + F, ws.v_X.data() + v * D + F + G, ws.v_g.data() + v * size_t(G));
+    T* v_g = ws.v_g.data();
+    detail::parallel_ranges(pool, V, 1024, [&](size_t b, size_t e) {
+      for (size_t v = b; v < e; ++v) std::copy(v_X + v * D + F, v_X + v * D + F + G, v_g + v * size_t(G));
+    });
     be.mlp_bwd(sh[kMlpImage], int32_t(V), ws.raw.data(), p.mlp[kMlpImage], ws.img_hidden.data(), ws.g.data(),
                ws.v_g.data(), static_cast<T*>(nullptr), grads->mlp[kMlpImage]);
   }

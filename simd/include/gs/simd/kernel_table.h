@@ -32,6 +32,9 @@ using LossFwdFn = void (*)(const LossParams*, int32_t width, int32_t height, con
                            float* scratch, double* out_l1, double* out_ssim);
 using LossBwdFn = void (*)(const LossParams*, int32_t width, int32_t height, const float* image, const float* target,
                            double v_loss, float* scratch, float* v_image, double* out_l1, double* out_ssim);
+using LossBwdRowsFn = void (*)(const LossParams*, int32_t width, int32_t height, int32_t row_begin, int32_t row_end,
+                               const float* image, const float* target, double v_loss, float* scratch,
+                               float* v_image, double* row_l1, double* row_ssim);
 using MlpFwdFn = void (*)(const MlpShape*, int32_t batch, const float* x, const float* W1, const float* b1,
                           const float* W2, const float* b2, float* hidden, float* y);
 using MlpBwdFn = void (*)(const MlpShape*, int32_t batch, const float* x, const float* W1, const float* b1,
@@ -62,6 +65,7 @@ struct KernelTable {
   Nv12ToRgbFn nv12_to_rgb;
   QRasterFwdTileFn qraster_fwd_tile;  // fixed-point forward of one tile, bit-identical across tables (qsplat.h)
   QMlpFwdFn qmlp_fwd;                 // int8 decoder MLP over a batch of rows, bit-identical across tables (qmlp.h)
+  LossBwdRowsFn loss_bwd_rows;        // loss_bwd for a band of rows, with per-row sums (parallel bands; loss.h)
 };
 
 // The reference table (always available).

@@ -148,4 +148,15 @@ void loss_bwd_ref(const LossParams* p, int32_t width, int32_t height,
                   double* out_l1,    // [1] or nullptr
                   double* out_ssim);  // [1] or nullptr
 
+// The backward for image rows [row_begin, row_end) only, so bands of rows can run in parallel
+// (each with its own scratch): writes those rows of v_image, exactly as loss_bwd_ref, and each
+// row's sums of |image - target| and of the SSIM map into row_l1[r], row_ssim[r] ([height]).
+// Summing row_l1 / row_ssim over all rows in order and dividing by 3 W H gives the means (in
+// the SIMD kernels bit-identical to their loss_bwd; here the per-row partials round differently
+// from loss_bwd_ref's single running sum). The band reads the image rows up to 10 beyond it.
+template <class T>
+void loss_bwd_rows_ref(const LossParams* p, int32_t width, int32_t height, int32_t row_begin, int32_t row_end,
+                       const T* image, const T* target, double v_loss, T* scratch, T* v_image, double* row_l1,
+                       double* row_ssim);
+
 }  // namespace gs::simd
