@@ -19,6 +19,7 @@
 #include <xsimd/xsimd.hpp>
 
 #include "gs/simd/isa.h"
+#include "../madd.hpp"
 
 #include "gs/simd/loss.h"
 
@@ -134,7 +135,7 @@ struct LossKernels {
             if (!up[k] && !down[k]) continue;
             const B s = up[k] && down[k] ? B::load_unaligned(up[k] + i) + B::load_unaligned(down[k] + i)
                                          : B::load_unaligned((up[k] ? up[k] : down[k]) + i);
-            acc = xsimd::fma(c.w[kSsimRadius + k], s, acc);
+            acc = madd(c.w[kSsimRadius + k], s, acc);
           }
           acc.store_unaligned(vg[g] + i);
         }
@@ -220,7 +221,7 @@ struct LossKernels {
           s[3] = s[3] + yb * yb;
           s[4] = s[4] + xb * yb;
         }
-        for (int q = 0; q < kMoments; ++q) acc[q] = xsimd::fma(c.w[kSsimRadius + k], s[q], acc[q]);
+        for (int q = 0; q < kMoments; ++q) acc[q] = madd(c.w[kSsimRadius + k], s[q], acc[q]);
       }
       for (int q = 0; q < kMoments; ++q) store_n(v[q] + i, acc[q], cnt);
     }
@@ -230,7 +231,7 @@ struct LossKernels {
   static B blur_horizontal(const Ctx& c, const float* v) {
     B acc = c.w[kSsimRadius] * B::load_unaligned(v);
     for (int k = 1; k <= kSsimRadius; ++k)
-      acc = xsimd::fma(c.w[kSsimRadius + k], B::load_unaligned(v - 3 * k) + B::load_unaligned(v + 3 * k), acc);
+      acc = madd(c.w[kSsimRadius + k], B::load_unaligned(v - 3 * k) + B::load_unaligned(v + 3 * k), acc);
     return acc;
   }
 };

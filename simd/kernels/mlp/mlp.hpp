@@ -37,6 +37,7 @@
 #include <xsimd/xsimd.hpp>
 
 #include "gs/simd/isa.h"
+#include "../madd.hpp"
 
 #include "gs/simd/mlp.h"
 
@@ -248,7 +249,7 @@ struct MlpKernels {
       for (size_t v = 0; v < NV; ++v) b[v] = B::load_unaligned(bp + v * N);
       for (size_t m = 0; m < MR; ++m) {
         const B am(a[m * g.ars]);
-        for (size_t v = 0; v < NV; ++v) acc[m][v] = xsimd::fma(am, b[v], acc[m][v]);
+        for (size_t v = 0; v < NV; ++v) acc[m][v] = madd(am, b[v], acc[m][v]);
       }
     }
     for (size_t m = 0; m < MR; ++m)
@@ -308,9 +309,9 @@ struct MlpKernels {
           const float g = v_y[r * O + o] * mlp_act2_deriv<float>(s->act2, y[r * O + o]);
           if (c == 0) v_b2[o] += g;
           const B gb(g);
-          v_h = xsimd::fma(gb, load_n(W2 + o * H + c, cnt), v_h);
+          v_h = madd(gb, load_n(W2 + o * H + c, cnt), v_h);
           float* vw2 = v_W2 + o * H + c;
-          store_n(vw2, xsimd::fma(gb, h, load_n(vw2, cnt)), cnt);
+          store_n(vw2, madd(gb, h, load_n(vw2, cnt)), cnt);
         }
         const B g1 = xsimd::select(h > B(0.0f), v_h, B(0.0f));
         store_n(v_b1 + c, load_n(v_b1 + c, cnt) + g1, cnt);
@@ -328,8 +329,8 @@ struct MlpKernels {
   static float dot(const float* a, const float* b, size_t n) {
     B acc(0.0f);
     size_t i = 0;
-    for (; i + N <= n; i += N) acc = xsimd::fma(B::load_unaligned(a + i), B::load_unaligned(b + i), acc);
-    if (i < n) acc = xsimd::fma(load_n(a + i, n - i), load_n(b + i, n - i), acc);
+    for (; i + N <= n; i += N) acc = madd(B::load_unaligned(a + i), B::load_unaligned(b + i), acc);
+    if (i < n) acc = madd(load_n(a + i, n - i), load_n(b + i, n - i), acc);
     return xsimd::hadd(acc);
   }
 
@@ -338,8 +339,8 @@ struct MlpKernels {
     const B ab(a);
     size_t i = 0;
     for (; i + N <= n; i += N)
-      xsimd::fma(ab, B::load_unaligned(in + i), B::load_unaligned(out + i)).store_unaligned(out + i);
-    if (i < n) store_n(out + i, xsimd::fma(ab, load_n(in + i, n - i), load_n(out + i, n - i)), n - i);
+      madd(ab, B::load_unaligned(in + i), B::load_unaligned(out + i)).store_unaligned(out + i);
+    if (i < n) store_n(out + i, madd(ab, load_n(in + i, n - i), load_n(out + i, n - i)), n - i);
   }
 
   // Loads cnt <= N values, zero-filling the other lanes (no read past p + cnt).

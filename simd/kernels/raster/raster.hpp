@@ -26,6 +26,7 @@
 #include <xsimd/xsimd.hpp>
 
 #include "gs/simd/isa.h"
+#include "../madd.hpp"
 
 #include "gs/simd/splat.h"
 
@@ -77,12 +78,12 @@ inline B exp2_nonpositive(B x) {
   const B n = xsimd::nearbyint(x);
   const B r = x - n;
   B p = B(1.5403530393381606e-4f);
-  p = p * r + B(1.3333558146428443e-3f);
-  p = p * r + B(9.618129107628477e-3f);
-  p = p * r + B(5.550410866482158e-2f);
-  p = p * r + B(2.402265069591007e-1f);
-  p = p * r + B(6.931471805599453e-1f);
-  p = p * r + B(1.0f);
+  p = madd(p, r, B(1.3333558146428443e-3f));
+  p = madd(p, r, B(9.618129107628477e-3f));
+  p = madd(p, r, B(5.550410866482158e-2f));
+  p = madd(p, r, B(2.402265069591007e-1f));
+  p = madd(p, r, B(6.931471805599453e-1f));
+  p = madd(p, r, B(1.0f));
   const I bits = xsimd::bitwise_cast<I>(p) + (xsimd::to_int(n) << 23);
   return xsimd::bitwise_cast<B>(bits);
 }
@@ -167,7 +168,7 @@ struct RasterKernels {
             if (lx + N - 1 < c.x0 || lx > c.x1) continue;
             const float dy = c.my - py;
             const B dx = B(c.mx) - px;
-            const B power = (B(c.half_a) * dx + B(c.neg_b * dy)) * dx + B(c.half_c * dy * dy);
+            const B power = madd(madd(B(c.half_a), dx, B(c.neg_b * dy)), dx, B(c.half_c * dy * dy));
             if (!xsimd::any(power >= B(c.threshold))) continue;
             const B raw = exp2_nonpositive(power + B(c.log2_opacity));
             const B alpha = xsimd::min(raw, B(kAlphaMax));
@@ -177,10 +178,10 @@ struct RasterKernels {
             const M stop = contributes & (next_t < B(kTransmittanceMin));
             const M use = contributes & !stop;
             const B w = xsimd::select(use, alpha * t, B(0.0f));
-            cr += B(c.rgbd[0]) * w;
-            cg += B(c.rgbd[1]) * w;
-            cb += B(c.rgbd[2]) * w;
-            cd += B(c.rgbd[3]) * w;
+            cr = madd(B(c.rgbd[0]), w, cr);
+            cg = madd(B(c.rgbd[1]), w, cg);
+            cb = madd(B(c.rgbd[2]), w, cb);
+            cd = madd(B(c.rgbd[3]), w, cd);
             t = xsimd::select(use, next_t, t);
             cl = xsimd::select(use, B(c.index1), cl);
             if (xsimd::any(stop)) {
@@ -256,7 +257,7 @@ struct RasterKernels {
           const M active = idx < B::load_aligned(last + o);
           if (!xsimd::any(active)) continue;
           const B dx = B(s[kSplatMx]) - (B(float(g.x0 + lx)) + centres);
-          const B power = (half_a2 * dx + row_b2) * dx + row_c2;  // base 2
+          const B power = madd(madd(half_a2, dx, row_b2), dx, row_c2);  // base 2
           if (!xsimd::any(power >= threshold)) continue;
           const B G = exp2_nonpositive(power);
           const B raw = op * G;
@@ -270,10 +271,10 @@ struct RasterKernels {
           t.store_aligned(T + o);
           const B pvr = B::load_aligned(vr + o), pvg = B::load_aligned(vg + o), pvb = B::load_aligned(vb + o);
           const B w = xsimd::select(use, alpha * t, B(0.0f));
-          acc_r += w * pvr;
-          acc_g += w * pvg;
-          acc_b += w * pvb;
-          const B cv = cr * pvr + cg * pvg + cb * pvb;  // this splat's colour . v
+          acc_r = madd(w, pvr, acc_r);
+          acc_g = madd(w, pvg, acc_g);
+          acc_b = madd(w, pvb, acc_b);
+          const B cv = madd(cr, pvr, madd(cg, pvg, cb * pvb));  // this splat's colour . v
           const B na = B::load_aligned(next_alpha + o), old_behind = B::load_aligned(behind_v + o);
           const B behind = xsimd::select(use, na * B::load_aligned(next_cv + o) + (B(1.0f) - na) * old_behind, old_behind);
           behind.store_aligned(behind_v + o);
@@ -283,8 +284,8 @@ struct RasterKernels {
           const B v_op = xsimd::select(use & !clamped, G * v_alpha, B(0.0f));
           acc_op += v_op;
           const B v_power = op * v_op;
-          acc_mx += v_power * -(ca * dx + cbb * dy);
-          acc_my += v_power * -(cc * dy + cbb * dx);
+          acc_mx -= v_power * madd(ca, dx, cbb * dy);
+          acc_my -= v_power * madd(cc, dy, cbb * dx);
           acc_a += v_power * B(-0.5f) * dx * dx;
           acc_b2 += v_power * -dx * dy;
           acc_c += v_power * B(-0.5f) * dy * dy;
