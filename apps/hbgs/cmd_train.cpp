@@ -239,12 +239,13 @@ Command add_train_command(CLI::App& parent) {
       ->capture_default_str()
       ->check(CLI::Range(-1, 100000000));
   sub->add_option("--coarse-levels", o->coarse_levels,
-                  "Coarse-to-fine halvings over the first --coarse-fraction of the iterations (-1: 2 with --optimize-poses unless --pose-init sfm, else 0)")
+                  "Coarse-to-fine halvings over the first --coarse-fraction of the iterations (-1: 2 with --optimize-poses, 0 with --pose-init sfm, else 1)")
       ->capture_default_str()
       ->check(CLI::Range(-1, 4));
-  sub->add_option("--coarse-fraction", o->coarse_fraction, "Share of the iterations the coarse-to-fine levels span")
+  sub->add_option("--coarse-fraction", o->coarse_fraction,
+                  "Share of the iterations the coarse-to-fine levels span (-1: 0.3 with --optimize-poses, else 0.5)")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(CLI::Range(-1.0, 1.0));
   sub->add_option("--pose-lr", o->pose_lr, "Initial pose learning rate (rad; translation x scene extent)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
