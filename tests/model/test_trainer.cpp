@@ -285,6 +285,54 @@ TEST_CASE("trainer: anchor and Gaussian budgets hold under aggressive growth") {
   check_budget(100000, 240); // the Gaussian budget binds: 240 / k = 60 anchors
 }
 
+// Runs busy growth for 90 iterations under a growth budget of B Gaussians per pixel (0: none);
+// returns the initial and final anchors and the mean Gaussians per view of the last 20 steps.
+struct GrowthRun {
+  size_t initial = 0, final_anchors = 0;
+  double late_gaussians = 0, pixels = 0;
+};
+GrowthRun run_growth(double gaussians_per_pixel) {
+  ModelConfig c = config(100000, 10000000);
+  HybridModel m = initial_model(c);
+  std::mt19937 rng(9);
+  std::normal_distribution<float> nrm(0.0f, 2.0f);
+  for (size_t i = 0; i < m.anchor_count * size_t(c.k) * 3; ++i) m.offsets[i] = nrm(rng);
+  GrowthRun r;
+  r.initial = m.anchor_count;
+  TrainOptions o = busy_options(90);
+  o.growth_gaussians_per_pixel = gaussians_per_pixel;
+  auto t = make_trainer(std::move(m), o, nullptr);
+  IterationStats st;
+  for (int i = 0; i < 90; ++i) {
+    const Status s = t->step(&st);
+    REQUIRE_MESSAGE(s.ok(), s.to_string());
+    if (i >= 70) r.late_gaussians += double(st.step.gaussians) / 20.0;
+  }
+  r.final_anchors = t->model().anchor_count;
+  const Camera& cam = scene().views.front().camera;
+  r.pixels = double(cam.intr.width) * double(cam.intr.height);
+  return r;
+}
+
+TEST_CASE("trainer: the growth budget bounds the Gaussians per view") {
+  const GrowthRun free = run_growth(0);
+  MESSAGE("no budget: " << free.initial << " -> " << free.final_anchors << " anchors, " << free.late_gaussians
+                        << " Gaussians per view late, " << free.pixels << " px");
+  REQUIRE(free.final_anchors > free.initial + free.initial / 2);  // growth is busy without a budget
+  // A budget below what the initial anchors already decode: no growth at all.
+  const GrowthRun none = run_growth(1e-6);
+  CHECK(none.final_anchors <= none.initial);
+  // A budget half-way between the start and the unbounded run: growth stops near it.
+  const double start_per_pixel = none.late_gaussians / none.pixels;
+  const double B = 0.5 * (start_per_pixel + free.late_gaussians / free.pixels);
+  const GrowthRun some = run_growth(B);
+  MESSAGE("budget " << B << " per pixel: " << some.initial << " -> " << some.final_anchors << " anchors, "
+                    << some.late_gaussians << " Gaussians per view late (budget " << B * some.pixels << ")");
+  CHECK(some.final_anchors > some.initial);
+  CHECK(some.final_anchors < free.final_anchors);
+  CHECK(some.late_gaussians <= 1.25 * B * some.pixels);
+}
+
 // A model at its anchor capacity whose Gaussians are large (base scale e^0 = 1, inside the
 // e^0.05 clamp the densification itself allows) and mostly kept: in these 64 x 48 views each
 // Gaussian covers most of the 12 tiles, so the Gaussian-tile intersections exceed 8 per planned
