@@ -228,11 +228,15 @@ void Trainer::Impl::load_target(const io::DatasetView& v, int s, const float bg[
   io::composite_target(v.image, v.mask, s, bg, target.data(), pool);
 }
 
+int Trainer::Impl::coarse_level(int it, double end) const {
+  const int L = opt.coarse_levels;
+  return std::max(0, std::min(L - 1, int(double(it - 1) * L / std::max(end, 1.0))));
+}
+
 int Trainer::Impl::downscale_at(int it) const {
   if (opt.coarse_levels <= 0) return 1;
   if (double(it) > coarse_end) return 1;
-  const int level = std::min(opt.coarse_levels - 1, int(double(it - 1) * opt.coarse_levels / std::max(coarse_end, 1.0)));
-  return 1 << (opt.coarse_levels - level);
+  return 1 << (opt.coarse_levels - coarse_level(it, coarse_end));
 }
 
 Status Trainer::Impl::register_all(int it, int* moved) {
@@ -512,10 +516,10 @@ Status Trainer::retarget(const TrainOptions& s) {
   if (o.coarse_levels > 0 && double(it) <= d.coarse_end) {
     double end = o.coarse_fraction * double(s.iterations);
     const int L = o.coarse_levels;
-    const int level = it > 0 ? std::min(L - 1, int(double(it - 1) * L / std::max(d.coarse_end, 1.0))) : 0;
+    const int level = it > 0 ? d.coarse_level(it, d.coarse_end) : 0;
     if (level > 0) {
       end = std::min(end, double(it - 1) * L / level);
-      while (end > 0 && int(double(it - 1) * L / end) < level) end = std::nextafter(end, 0.0);  // rounding
+      while (end > 0 && d.coarse_level(it, end) < level) end = std::nextafter(end, 0.0);  // rounding
     }
     d.coarse_end = end;
   }

@@ -145,40 +145,35 @@ size_t Trainer::Impl::grow_level(int level, double min_denom, size_t allowance) 
       cell_scores[cells++] = {-best, uint32_t(b)};
     b = e;
   }
-  float cut = 0;  // the last winner's (-mean gradient, first candidate); none: every cell wins
-  uint32_t cut_first = UINT32_MAX;
   if (cells > allowance) {
     std::nth_element(cell_scores.begin(), cell_scores.begin() + std::ptrdiff_t(allowance - 1),
                      cell_scores.begin() + std::ptrdiff_t(cells));
-    cut = cell_scores[allowance - 1].first;
-    cut_first = cell_scores[allowance - 1].second;
+    cells = allowance;
   }
+  // The winners in cell order (their first candidate's index), as the candidates were sorted.
+  std::sort(cell_scores.begin(), cell_scores.begin() + std::ptrdiff_t(cells),
+            [](const auto& x, const auto& y) { return x.second < y.second; });
   size_t added = 0;
-  for (size_t b = 0; b < nc;) {
+  for (size_t w = 0; w < cells && model.anchor_count < cap(); ++w) {
+    const size_t b = cell_scores[w].second;
     size_t e = b + 1;
-    float best = mean_grad(cand[b].second);
-    while (e < nc && cand[e].first == cand[b].first) best = std::max(best, mean_grad(cand[e++].second));
+    while (e < nc && cand[e].first == cand[b].first) ++e;
     const detail::CellKey cell = cand[b].first;
-    const bool taken = std::binary_search(existing_cells.begin(), existing_cells.begin() + std::ptrdiff_t(M), cell);
-    const bool wins = cut_first == UINT32_MAX || std::make_pair(-best, uint32_t(b)) <= std::make_pair(cut, cut_first);
-    if (!taken && wins && model.anchor_count < cap()) {
-      const size_t row = model.anchor_count++;
-      const float pos[3] = {float(double(cell.x) * size), float(double(cell.y) * size), float(double(cell.z) * size)};
-      std::copy(pos, pos + 3, &model.positions[3 * row]);
-      std::fill(&model.offsets[row * K * 3], &model.offsets[(row + 1) * K * 3], 0.0f);
-      std::fill(&model.log_scales[6 * row], &model.log_scales[6 * row + 6], float(std::log(size)));
-      // Feature = element-wise max over the parents in this cell (Scaffold-GS; order-consistent).
-      float* f = &model.features[row * size_t(c.feature_dim)];
-      for (int d = 0; d < c.feature_dim; ++d) {
-        float best = -INFINITY;
-        for (size_t q = b; q < e; ++q) best = std::max(best, model.features[(cand[q].second / K) * size_t(c.feature_dim) + size_t(d)]);
-        f[d] = best;
-      }
-      if (paper()) bank.compute(pos, 1, &model.image_raw[row * size_t(kImageRawDim)], nullptr);
-      clear_row(row);
-      ++added;
+    const size_t row = model.anchor_count++;
+    const float pos[3] = {float(double(cell.x) * size), float(double(cell.y) * size), float(double(cell.z) * size)};
+    std::copy(pos, pos + 3, &model.positions[3 * row]);
+    std::fill(&model.offsets[row * K * 3], &model.offsets[(row + 1) * K * 3], 0.0f);
+    std::fill(&model.log_scales[6 * row], &model.log_scales[6 * row + 6], float(std::log(size)));
+    // Feature = element-wise max over the parents in this cell (Scaffold-GS; order-consistent).
+    float* f = &model.features[row * size_t(c.feature_dim)];
+    for (int d = 0; d < c.feature_dim; ++d) {
+      float best = -INFINITY;
+      for (size_t q = b; q < e; ++q) best = std::max(best, model.features[(cand[q].second / K) * size_t(c.feature_dim) + size_t(d)]);
+      f[d] = best;
     }
-    b = e;
+    if (paper()) bank.compute(pos, 1, &model.image_raw[row * size_t(kImageRawDim)], nullptr);
+    clear_row(row);
+    ++added;
   }
   return added;
 }

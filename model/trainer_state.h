@@ -128,6 +128,8 @@ struct Trainer::Impl {
   Status register_held(int it, int* released);
   // Target at resolution divisor s (s x s block means, matching scaled_camera), composited on bg.
   void load_target(const io::DatasetView& v, int s, const float bg[3]);
+  // Coarse-to-fine level (0 = coarsest) of iteration it when the coarse phase ends at `end`.
+  int coarse_level(int it, double end) const;
   int downscale_at(int it) const;
   // Registers every training pose against the current model (see TrainOptions); returns how many
   // poses moved.

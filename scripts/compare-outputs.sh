@@ -61,7 +61,8 @@ print(f"training losses: {len(la)} iterations compared, last {la[-1]!r} vs {lb[-
 def strip(x, side):
     if isinstance(x, dict):
         return {k: strip(v, side) for k, v in x.items()
-                if not (k.endswith("_ms") or k.endswith("ms_median") or k == "ms" or "seconds" in k)}
+                if not (k.endswith("_ms") or k.endswith("ms_median") or k == "ms" or "seconds" in k
+                        or k.startswith("stage_ms"))}
     if isinstance(x, list):
         return [strip(v, side) for v in x]
     if isinstance(x, str):
