@@ -6,10 +6,13 @@
 //
 // Forward: batch-major. Splats are taken in chunks of kChunk (boxes precomputed on the stack); for
 // each pixel batch the state (T, colour, depth, last) stays in registers while the chunk's splats
-// are blended, and a batch whose pixels have all stopped leaves the loop early.
+// are blended, and a batch whose pixels have all stopped leaves the loop early. The blend step has
+// no data-dependent branch: skipping a splat that no lane reaches saved an exp but cost more in
+// mispredicted branches (tile replay of a snowmiku_plush training view: forward 0.73x on avx512,
+// 0.83x on avx2 without them). The row buckets already keep splats off rows they cannot reach.
 // Backward: splat-major (gradients accumulate in registers per splat, one horizontal sum per
-// splat); the colour behind each splat is carried only as its dot product with the pixel's
-// cotangent, so the per-pixel state is 3 scalars instead of 7.
+// splat). The colour behind each splat enters only through one per-pixel scalar, the cotangent-
+// weighted light already blended behind it (see bwd), so a step loads and stores little state.
 //
 // Semantics are those of raster_ref.cpp, which is the spec. Rounding differs slightly: the
 // exponent is evaluated in base 2 per row as (A' dx + B') dx + C' with coefficients pre-scaled by
@@ -106,11 +109,10 @@ struct RasterKernels {
   }
 
   // A splat as the forward's inner loop wants it: exponent coefficients pre-scaled (by -1/2 and by
-  // log2(e), so the exponent is in base 2), the opacity as its base-2 log added to the exponent,
-  // support box columns, and the exponent below which alpha < 1/255 (with a 1e-3 margin) so exp can be
-  // skipped.
+  // log2(e), so the exponent is in base 2), the opacity as its base-2 log added to the exponent, and
+  // the support box columns.
   struct ChunkSplat {
-    float mx, my, half_a, neg_b, half_c, log2_opacity, threshold, index1;
+    float mx, my, half_a, neg_b, half_c, log2_opacity, index1;
     float rgbd[4];
     int16_t x0, x1;  // inclusive tile-local columns of the support box
   };
@@ -145,7 +147,6 @@ struct RasterKernels {
         c.half_a = -0.5f * kLog2e * s[kSplatA]; c.neg_b = -kLog2e * s[kSplatB]; c.half_c = -0.5f * kLog2e * s[kSplatC];
         c.log2_opacity = scalar::log2(s[kSplatOpacity]);
         c.rgbd[0] = s[kSplatR]; c.rgbd[1] = s[kSplatG]; c.rgbd[2] = s[kSplatBlue]; c.rgbd[3] = s[kSplatDepth];
-        c.threshold = kLog2e * (-0.5f * s[kSplatTwoTau] - 1e-3f);
         c.index1 = float(c0 + k + 1);
         for (int32_t y = by0; y <= by1; ++y) rows[y][row_count[y]++] = uint8_t(nb);
         ++nb;
@@ -169,11 +170,9 @@ struct RasterKernels {
             const float dy = c.my - py;
             const B dx = B(c.mx) - px;
             const B power = madd(madd(B(c.half_a), dx, B(c.neg_b * dy)), dx, B(c.half_c * dy * dy));
-            if (!xsimd::any(power >= B(c.threshold))) continue;
             const B raw = exp2_nonpositive(power + B(c.log2_opacity));
             const B alpha = xsimd::min(raw, B(kAlphaMax));
             const M contributes = (power <= B(0.0f)) & (alpha >= B(kAlphaMin)) & !is_done;
-            if (!xsimd::any(contributes)) continue;
             const B next_t = t * (B(1.0f) - alpha);
             const M stop = contributes & (next_t < B(kTransmittanceMin));
             const M use = contributes & !stop;
@@ -215,25 +214,26 @@ struct RasterKernels {
                   const float* final_T, const int32_t* last_in, const float* v_rgb, float* v_splats) {
     scalar::fill(v_splats, v_splats + size_t(count) * kSplatStride, 0.0f);
     const TileGeometry g = tile_geometry(p->width, p->height, tile_x, tile_y);
-    // Per-pixel state, walking back to front. The colour blended behind a splat only enters the
-    // gradient dotted with the pixel's cotangent v, so it is kept as that scalar:
-    //   behind_v(i) = alpha(i+1) (c(i+1) . v) + (1 - alpha(i+1)) behind_v(i+1).
-    alignas(64) float T[kTilePixels], T_fin[kTilePixels], last[kTilePixels], v_bg[kTilePixels];
+    // Per-pixel state, walking back to front. With v the pixel's cotangent, T_i the transmittance in
+    // front of splat i and c_i its colour, the light blended behind splat j, weighted by v, is
+    //   behind_j = sum_{i > j} (c_i . v) alpha_i T_i + T_final (background . v),
+    // and d(pixel . v) / d alpha_j = (c_j . v) T_j - behind_j / (1 - alpha_j) (the reference's
+    // colour-behind form, raster_ref.cpp, multiplied out). behind starts at the background term
+    // and each splat adds its own term once its gradient is taken: one scalar of state per pixel.
+    alignas(64) float T[kTilePixels], last[kTilePixels], behind_v[kTilePixels];
     alignas(64) float vr[kTilePixels], vg[kTilePixels], vb[kTilePixels];
-    alignas(64) float behind_v[kTilePixels], next_alpha[kTilePixels], next_cv[kTilePixels];
     int32_t max_last = 0;
     for (int i = 0; i < kTilePixels; ++i) {
       const int lx = i % kTileSize, ly = i / kTileSize;
       const bool inside = lx < g.w && ly < g.h;
       const size_t pix = inside ? size_t(g.y0 + ly) * p->width + (g.x0 + lx) : 0;
-      T[i] = T_fin[i] = inside ? final_T[pix] : 1.0f;
+      T[i] = inside ? final_T[pix] : 1.0f;
       last[i] = inside ? float(last_in[pix]) : 0.0f;  // outside pixels: no contributor, never active
       max_last = scalar::max(max_last, inside ? last_in[pix] : 0);
       vr[i] = inside ? v_rgb[3 * pix] : 0.0f;
       vg[i] = inside ? v_rgb[3 * pix + 1] : 0.0f;
       vb[i] = inside ? v_rgb[3 * pix + 2] : 0.0f;
-      v_bg[i] = p->background[0] * vr[i] + p->background[1] * vg[i] + p->background[2] * vb[i];
-      behind_v[i] = next_alpha[i] = next_cv[i] = 0.0f;
+      behind_v[i] = T[i] * (p->background[0] * vr[i] + p->background[1] * vg[i] + p->background[2] * vb[i]);
     }
     const B centres = lane_centres();
     for (int32_t i = scalar::min(max_last, count) - 1; i >= 0; --i) {
@@ -243,10 +243,9 @@ struct RasterKernels {
       const B threshold(kLog2e * (-0.5f * s[kSplatTwoTau] - 1e-3f));
       const B idx = B(float(i));
       const B cr(s[kSplatR]), cg(s[kSplatG]), cb(s[kSplatBlue]), op(s[kSplatOpacity]);
-      const B ca(s[kSplatA]), cbb(s[kSplatB]), cc(s[kSplatC]);
       const B half_a2(-0.5f * kLog2e * s[kSplatA]);  // base-2 exponent coefficients
-      B acc_r(0.0f), acc_g(0.0f), acc_b(0.0f), acc_op(0.0f), acc_mx(0.0f), acc_my(0.0f), acc_a(0.0f), acc_b2(0.0f),
-          acc_c(0.0f);
+      B acc_r(0.0f), acc_g(0.0f), acc_b(0.0f), acc_op(0.0f);
+      B sum_dx(0.0f), sum_dy(0.0f), sum_dxdx(0.0f), sum_dxdy(0.0f), sum_dydy(0.0f);  // moments of v_power
       const int32_t c0 = bx0 / N * N, c1 = bx1 / N * N;
       for (int32_t ly = by0; ly <= by1; ++ly) {
         const float dyf = s[kSplatMy] - (float(g.y0 + ly) + 0.5f);
@@ -275,20 +274,20 @@ struct RasterKernels {
           acc_g = madd(w, pvg, acc_g);
           acc_b = madd(w, pvb, acc_b);
           const B cv = madd(cr, pvr, madd(cg, pvg, cb * pvb));  // this splat's colour . v
-          const B na = B::load_aligned(next_alpha + o), old_behind = B::load_aligned(behind_v + o);
-          const B behind = xsimd::select(use, na * B::load_aligned(next_cv + o) + (B(1.0f) - na) * old_behind, old_behind);
-          behind.store_aligned(behind_v + o);
-          xsimd::select(use, alpha, na).store_aligned(next_alpha + o);
-          xsimd::select(use, cv, B::load_aligned(next_cv + o)).store_aligned(next_cv + o);
-          const B v_alpha = (cv - behind) * t - B::load_aligned(T_fin + o) * inv_one_minus * B::load_aligned(v_bg + o);
+          const B behind = B::load_aligned(behind_v + o);
+          const B v_alpha = cv * t - behind * inv_one_minus;
+          madd(cv, w, behind).store_aligned(behind_v + o);  // w = 0 where the splat is not used
           const B v_op = xsimd::select(use & !clamped, G * v_alpha, B(0.0f));
           acc_op += v_op;
+          // The conic and mean gradients are linear in these moments of v_power over the pixels
+          // (the conic is constant per splat), so the step only accumulates the moments.
           const B v_power = op * v_op;
-          acc_mx -= v_power * madd(ca, dx, cbb * dy);
-          acc_my -= v_power * madd(cc, dy, cbb * dx);
-          acc_a += v_power * B(-0.5f) * dx * dx;
-          acc_b2 += v_power * -dx * dy;
-          acc_c += v_power * B(-0.5f) * dy * dy;
+          const B vp_dx = v_power * dx, vp_dy = v_power * dy;
+          sum_dx += vp_dx;
+          sum_dy += vp_dy;
+          sum_dxdx = madd(vp_dx, dx, sum_dxdx);
+          sum_dxdy = madd(vp_dx, dy, sum_dxdy);
+          sum_dydy = madd(vp_dy, dy, sum_dydy);
         }
       }
       float* gs = v_splats + size_t(i) * kSplatStride;
@@ -296,11 +295,14 @@ struct RasterKernels {
       gs[kSplatG] = xsimd::hadd(acc_g);
       gs[kSplatBlue] = xsimd::hadd(acc_b);
       gs[kSplatOpacity] = xsimd::hadd(acc_op);
-      gs[kSplatMx] = xsimd::hadd(acc_mx);
-      gs[kSplatMy] = xsimd::hadd(acc_my);
-      gs[kSplatA] = xsimd::hadd(acc_a);
-      gs[kSplatB] = xsimd::hadd(acc_b2);
-      gs[kSplatC] = xsimd::hadd(acc_c);
+      // power = -(a dx^2 + 2 b dx dy + c dy^2) / 2 with dx = mean_x - pixel_x: d power / d mean_x =
+      // -(a dx + b dy), d power / d a = -dx^2 / 2, d / d b = -dx dy, d / d c = -dy^2 / 2.
+      const float m_dx = xsimd::hadd(sum_dx), m_dy = xsimd::hadd(sum_dy);
+      gs[kSplatMx] = -(s[kSplatA] * m_dx + s[kSplatB] * m_dy);
+      gs[kSplatMy] = -(s[kSplatC] * m_dy + s[kSplatB] * m_dx);
+      gs[kSplatA] = -0.5f * xsimd::hadd(sum_dxdx);
+      gs[kSplatB] = -xsimd::hadd(sum_dxdy);
+      gs[kSplatC] = -0.5f * xsimd::hadd(sum_dydy);
     }
   }
 };
