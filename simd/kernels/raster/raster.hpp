@@ -10,9 +10,11 @@
 // no data-dependent branch: skipping a splat that no lane reaches saved an exp but cost more in
 // mispredicted branches (tile replay of a snowmiku_plush training view: forward 0.73x on avx512,
 // 0.83x on avx2 without them). The row buckets already keep splats off rows they cannot reach.
-// Backward: splat-major (gradients accumulate in registers per splat, one horizontal sum per
-// splat). The colour behind each splat enters only through one per-pixel scalar, the cotangent-
-// weighted light already blended behind it (see bwd), so a step loads and stores little state.
+// Backward: splat-major (gradients accumulate in registers per splat; the lane sums of N splats'
+// accumulators are taken together by lane_sums). The colour behind each splat enters only through
+// one per-pixel scalar, the cotangent-weighted light already blended behind it (see bwd), so a step
+// loads and stores little state. Its only data-dependent skip is a row no lane reaches (measured
+// against skipping also rows where no lane blends: that one cost more than it saved).
 //
 // Semantics are those of raster_ref.cpp, which is the spec. Rounding differs slightly: the
 // exponent is evaluated in base 2 per row as (A' dx + B') dx + C' with coefficients pre-scaled by
@@ -30,6 +32,7 @@
 
 #include "gs/simd/isa.h"
 #include "../madd.hpp"
+#include "../lane_sums.hpp"
 
 #include "gs/simd/splat.h"
 
@@ -236,6 +239,11 @@ struct RasterKernels {
       behind_v[i] = T[i] * (p->background[0] * vr[i] + p->background[1] * vg[i] + p->background[2] * vb[i]);
     }
     const B centres = lane_centres();
+    // Each splat's kSums accumulators are summed across lanes N splats at a time (lane_sums: one
+    // transposing reduction instead of kSums horizontal sums per splat).
+    alignas(64) float pending[kSums][N * N];
+    int32_t pending_index[N];
+    int pending_count = 0;
     for (int32_t i = scalar::min(max_last, count) - 1; i >= 0; --i) {
       const float* s = splats + size_t(i) * kSplatStride;
       int32_t bx0, by0, bx1, by1;
@@ -263,7 +271,6 @@ struct RasterKernels {
           const M clamped = raw > B(kAlphaMax);
           const B alpha = xsimd::select(clamped, B(kAlphaMax), raw);
           const M use = (power <= B(0.0f)) & (alpha >= B(kAlphaMin)) & active;
-          if (!xsimd::any(use)) continue;
           const B inv_one_minus = B(1.0f) / (B(1.0f) - alpha);  // one division serves both uses below
           const B t_old = B::load_aligned(T + o);
           const B t = xsimd::select(use, t_old * inv_one_minus, t_old);
@@ -290,19 +297,51 @@ struct RasterKernels {
           sum_dydy = madd(vp_dy, dy, sum_dydy);
         }
       }
-      float* gs = v_splats + size_t(i) * kSplatStride;
-      gs[kSplatR] = xsimd::hadd(acc_r);
-      gs[kSplatG] = xsimd::hadd(acc_g);
-      gs[kSplatBlue] = xsimd::hadd(acc_b);
-      gs[kSplatOpacity] = xsimd::hadd(acc_op);
+      const int slot = pending_count * N;
+      acc_r.store_aligned(pending[0] + slot);
+      acc_g.store_aligned(pending[1] + slot);
+      acc_b.store_aligned(pending[2] + slot);
+      acc_op.store_aligned(pending[3] + slot);
+      sum_dx.store_aligned(pending[4] + slot);
+      sum_dy.store_aligned(pending[5] + slot);
+      sum_dxdx.store_aligned(pending[6] + slot);
+      sum_dxdy.store_aligned(pending[7] + slot);
+      sum_dydy.store_aligned(pending[8] + slot);
+      pending_index[pending_count++] = i;
+      if (pending_count == N) {
+        flush(splats, pending, pending_index, pending_count, v_splats);
+        pending_count = 0;
+      }
+    }
+    if (pending_count > 0) flush(splats, pending, pending_index, pending_count, v_splats);
+  }
+
+  static constexpr int kSums = 9;  // per splat: r, g, b, opacity, then the moments dx, dy, dxdx, dxdy, dydy
+
+  // Writes the gradients of the n (<= N) pending splats: lane sums of their accumulators, and the
+  // mean and conic gradients from the moments.
+  static void flush(const float* splats, float (*pending)[N * N], const int32_t* index, int n, float* v_splats) {
+    alignas(64) float sums[kSums][N];
+    for (int f = 0; f < kSums; ++f) {
+      B rows[N];
+      for (int k = 0; k < N; ++k) rows[k] = k < n ? B::load_aligned(pending[f] + k * N) : B(0.0f);
+      lane_sums(rows).store_aligned(sums[f]);
+    }
+    for (int k = 0; k < n; ++k) {
+      const float* s = splats + size_t(index[k]) * kSplatStride;
+      float* gs = v_splats + size_t(index[k]) * kSplatStride;
+      gs[kSplatR] = sums[0][k];
+      gs[kSplatG] = sums[1][k];
+      gs[kSplatBlue] = sums[2][k];
+      gs[kSplatOpacity] = sums[3][k];
       // power = -(a dx^2 + 2 b dx dy + c dy^2) / 2 with dx = mean_x - pixel_x: d power / d mean_x =
       // -(a dx + b dy), d power / d a = -dx^2 / 2, d / d b = -dx dy, d / d c = -dy^2 / 2.
-      const float m_dx = xsimd::hadd(sum_dx), m_dy = xsimd::hadd(sum_dy);
+      const float m_dx = sums[4][k], m_dy = sums[5][k];
       gs[kSplatMx] = -(s[kSplatA] * m_dx + s[kSplatB] * m_dy);
       gs[kSplatMy] = -(s[kSplatC] * m_dy + s[kSplatB] * m_dx);
-      gs[kSplatA] = -0.5f * xsimd::hadd(sum_dxdx);
-      gs[kSplatB] = -xsimd::hadd(sum_dxdy);
-      gs[kSplatC] = -0.5f * xsimd::hadd(sum_dydy);
+      gs[kSplatA] = -0.5f * sums[6][k];
+      gs[kSplatB] = -sums[7][k];
+      gs[kSplatC] = -0.5f * sums[8][k];
     }
   }
 };
