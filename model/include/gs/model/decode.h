@@ -14,6 +14,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <initializer_list>
+#include <type_traits>
 #include <vector>
 
 #include "gs/camera.h"
@@ -159,10 +160,14 @@ inline void centre_grad_to_pose(const Pose& pose, const double g_centre[3], doub
     v_pose[r] -= pose.R[3 * r] * g_centre[0] + pose.R[3 * r + 1] * g_centre[1] + pose.R[3 * r + 2] * g_centre[2];
 }
 
-// log(sigmoid(u)) without overflow, and sigmoid(u).
+// log(sigmoid(u)) without overflow, and sigmoid(u). In float, log(1 + e) replaces log1p(e) (glibc's
+// log1pf cost ~2.5 % of a training iteration, logf a fraction of it): they differ only for
+// e < 2^-24, by less than e, which moves a log-scale by under 6e-8.
 template <class T>
 inline T log_sigmoid(T u) {
-  return -(std::max(-u, T(0)) + std::log1p(std::exp(-std::abs(u))));
+  const T e = std::exp(-std::abs(u));
+  if constexpr (std::is_same_v<T, float>) return -(std::max(-u, T(0)) + std::log(T(1) + e));
+  return -(std::max(-u, T(0)) + std::log1p(e));
 }
 template <class T>
 inline T sigmoid(T u) {
