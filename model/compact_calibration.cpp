@@ -26,6 +26,7 @@ Status scan_views(const HybridModel& m, const std::vector<Camera>& cams, platfor
   const size_t M = m.anchor_count, K = size_t(m.config.k);
   out->seen.assign(M, 0);
   out->kept.assign(M, 0);
+  out->kept_gaussian.assign(M * K, 0);
   ModelParamsT<float> p = model_params(m);
   simd::MlpShape pre[kMlpCount];
   for (int i = 0; i < kMlpCount; ++i) {
@@ -71,7 +72,7 @@ Status scan_views(const HybridModel& m, const std::vector<Camera>& cams, platfor
     const float* op = ws.y[kMlpOpacity].data();  // tanh(z) > 0 iff z > 0
     for (size_t v = 0; v < V; ++v)
       for (size_t j = 0; j < K; ++j)
-        if (op[v * K + j] > 0.0f) out->kept[rows[v]] = 1;
+        if (op[v * K + j] > 0.0f) out->kept[rows[v]] = 1, out->kept_gaussian[size_t(rows[v]) * K + j] = 1;
   }
   return Status::Ok();
 }

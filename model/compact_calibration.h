@@ -18,6 +18,7 @@ namespace gs::model::detail {
 
 struct CalibrationScan {
   std::vector<uint8_t> seen, kept;  // [M]: visible in some view; some Gaussian with opacity > 0
+  std::vector<uint8_t> kept_gaussian;  // [M, k]: neural Gaussian j of anchor i has opacity > 0 in some view
   ActivationRanges ranges[kMlpCount];
 };
 

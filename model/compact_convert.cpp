@@ -46,6 +46,11 @@ Expected<CompactModel> compact_from_model(const HybridModel& model, const std::v
   GS_RETURN_IF_ERROR(check_model_finite(model, "compact: the float model"));
   if (options.residual_bits < 0 || options.residual_bits > 12)
     return invalid_argument("compact: residual bits " + std::to_string(options.residual_bits) + " outside 0..12");
+  if (options.offset_levels < 1 || options.offset_levels > 127 || options.feature_levels < 1 || options.feature_levels > 127)
+    return invalid_argument("compact: offset and feature levels must be in 1..127");
+  if (options.image_levels < 1 || options.image_levels > 255) return invalid_argument("compact: image feature levels must be in 1..255");
+  if (!(options.log_scale_step >= 0 && options.log_scale_step <= 1))
+    return invalid_argument("compact: the log-scale step must be in [0, 1] (0: half precision)");
   if (!(model.voxel_size > 0) || !std::isfinite(model.voxel_size))
     return invalid_argument("compact: the model's voxel size " + std::to_string(model.voxel_size) + " is not positive");
   const ModelConfig& c = model.config;
@@ -56,9 +61,9 @@ Expected<CompactModel> compact_from_model(const HybridModel& model, const std::v
 
   // 1. Pruning on the float model.
   std::vector<size_t> keep;
+  detail::CalibrationScan scan;
   {
-    detail::CalibrationScan scan;
-    if (options.prune && !cameras.empty()) GS_RETURN_IF_ERROR(detail::scan_views(model, cameras, pool, &scan));
+    if ((options.prune || options.prune_offsets) && !cameras.empty()) GS_RETURN_IF_ERROR(detail::scan_views(model, cameras, pool, &scan));
     for (size_t i = 0; i < model.anchor_count; ++i) {
       const bool prune = options.prune && !cameras.empty() && !scan.kept[i];
       if (options.prune && !cameras.empty() && !scan.seen[i]) ++st.never_visible;
@@ -107,17 +112,45 @@ Expected<CompactModel> compact_from_model(const HybridModel& model, const std::v
   // 3. Per-channel quantisation of the rows.
   cm.offsets.resize(M * 3 * K);
   cm.offset_scale.resize(M);
+  // A neural Gaussian no training view keeps (opacity <= 0 in all) is never drawn there: its offset
+  // is stored as 0 and does not widen the anchor's step (its opacity does not depend on it).
+  const bool drop_offsets = options.prune_offsets && !cameras.empty();
   for (size_t r = 0; r < M; ++r) {
     const float* o = &sel.offsets[r * 3 * K];
+    const uint8_t* live = drop_offsets ? &scan.kept_gaussian[rows[r] * K] : nullptr;
     float a = 0;
-    for (size_t i = 0; i < 3 * K; ++i) a = std::max(a, std::fabs(o[i]));
-    cm.offset_scale[r] = float_to_half(a / 127.0f);
+    for (size_t i = 0; i < 3 * K; ++i)
+      if (!live || live[i / 3]) a = std::max(a, std::fabs(o[i]));
+    cm.offset_scale[r] = float_to_half(a / float(options.offset_levels));
     const float sc = half_to_float(cm.offset_scale[r]);
-    for (size_t i = 0; i < 3 * K; ++i) cm.offsets[r * 3 * K + i] = detail::q8(o[i], sc);
+    for (size_t i = 0; i < 3 * K; ++i) {
+      const bool used = !live || live[i / 3];
+      cm.offsets[r * 3 * K + i] = used ? detail::q8(o[i], sc) : int8_t(0);
+      if (!used && i % 3 == 0) ++st.offsets_dropped;
+    }
   }
-  detail::quantize_channels(sel.features.data(), M, F, &cm.features, &cm.feature_scale);
+  detail::quantize_channels(sel.features.data(), M, F, options.feature_levels, &cm.features, &cm.feature_scale);
   cm.log_scales.resize(M * 6);
-  for (size_t i = 0; i < M * 6; ++i) cm.log_scales[i] = float_to_half(sel.log_scales[i]);
+  cm.log_scale_step = options.log_scale_step;
+  if (cm.log_scale_step > 0) {
+    // A grid per channel from its minimum; a span over 65,535 steps coarsens the step to fit.
+    float span = 0;
+    for (size_t ch = 0; ch < 6; ++ch) {
+      float lo = M ? sel.log_scales[ch] : 0.0f, hi = lo;
+      for (size_t r = 0; r < M; ++r) lo = std::min(lo, sel.log_scales[6 * r + ch]), hi = std::max(hi, sel.log_scales[6 * r + ch]);
+      cm.log_scale_lo[ch] = lo;
+      span = std::max(span, hi - lo);
+    }
+    cm.log_scale_step = std::max(cm.log_scale_step, span / 65535.0f);
+    for (size_t r = 0; r < M; ++r)
+      for (size_t ch = 0; ch < 6; ++ch) {
+        const double t = (double(sel.log_scales[6 * r + ch]) - cm.log_scale_lo[ch]) / cm.log_scale_step;
+        cm.log_scales[6 * r + ch] = uint16_t(std::clamp(std::lround(t), 0L, 65535L));
+      }
+  } else {
+    for (size_t i = 0; i < M * 6; ++i) cm.log_scales[i] = float_to_half(sel.log_scales[i]);
+  }
+  cm.image_levels = options.image_levels;
   if (uses_image_features(c.image_features)) {
     const size_t R = kImageRawDim;
     for (size_t ch = 0; ch < R; ++ch) {
@@ -130,12 +163,12 @@ Expected<CompactModel> compact_from_model(const HybridModel& model, const std::v
     for (size_t r = 0; r < M; ++r)
       for (size_t ch = 0; ch < R; ++ch) {
         const float span = cm.image_hi[ch] - cm.image_lo[ch];
-        const double t = span > 0 ? (double(sel.image_raw[r * R + ch]) - cm.image_lo[ch]) / span * 255.0 : 0.0;
-        cm.image_raw[r * R + ch] = uint8_t(std::clamp(std::lround(t), 0L, 255L));
+        const double t = span > 0 ? (double(sel.image_raw[r * R + ch]) - cm.image_lo[ch]) / span * cm.image_levels : 0.0;
+        cm.image_raw[r * R + ch] = uint8_t(std::clamp(std::lround(t), 0L, long(cm.image_levels)));
       }
   }
   for (int i = 0; i < kMlpCount; ++i)
-    if (i != kMlpImage || uses_image_features(c.image_features)) detail::quantize_mlp(model.mlps[i], &cm.mlps[i]);
+    if (i != kMlpImage || uses_image_features(c.image_features)) detail::quantize_mlp(model.mlps[i], options.mlp_fine, &cm.mlps[i]);
 
   // 4. Activation ranges of the model as it will be decoded (the dequantised one).
   {
@@ -170,15 +203,20 @@ HybridModel dequantize(const CompactModel& cm) {
   for (size_t r = 0; r < M; ++r)
     for (size_t ch = 0; ch < F; ++ch) m.features[r * F + ch] = float(cm.features[r * F + ch]) * cm.feature_scale[ch];
   m.log_scales.resize(M * 6);
-  for (size_t i = 0; i < M * 6; ++i) m.log_scales[i] = half_to_float(cm.log_scales[i]);
+  if (cm.log_scale_step > 0) {
+    for (size_t i = 0; i < M * 6; ++i) m.log_scales[i] = cm.log_scale_lo[i % 6] + float(cm.log_scales[i]) * cm.log_scale_step;
+  } else {
+    for (size_t i = 0; i < M * 6; ++i) m.log_scales[i] = half_to_float(cm.log_scales[i]);
+  }
   if (uses_image_features(cm.config.image_features)) {
     const size_t R = kImageRawDim;
     m.image_raw.assign(M * R, 0.0f);
     for (size_t r = 0; r < M; ++r) {
-      const float flag = cm.image_lo[kValidFlag] + float(cm.image_raw[r * R + kValidFlag]) * ((cm.image_hi[kValidFlag] - cm.image_lo[kValidFlag]) / 255.0f);
+      const float levels = float(cm.image_levels);
+      const float flag = cm.image_lo[kValidFlag] + float(cm.image_raw[r * R + kValidFlag]) * ((cm.image_hi[kValidFlag] - cm.image_lo[kValidFlag]) / levels);
       if (!(flag >= 0.5f)) continue;  // no view sees it: the raw vector stays all zero
       for (size_t ch = 0; ch < R; ++ch)
-        m.image_raw[r * R + ch] = cm.image_lo[ch] + float(cm.image_raw[r * R + ch]) * ((cm.image_hi[ch] - cm.image_lo[ch]) / 255.0f);
+        m.image_raw[r * R + ch] = cm.image_lo[ch] + float(cm.image_raw[r * R + ch]) * ((cm.image_hi[ch] - cm.image_lo[ch]) / levels);
     }
   }
   for (int i = 0; i < kMlpCount; ++i)
