@@ -7,7 +7,9 @@
 // the accuracy loss is measured, and the decode time of the file (minimum of the repetitions).
 //   bench_compact RUN [--reps N] [--no-attribution]
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <string>
 #include <vector>
@@ -61,6 +63,8 @@ int main(int argc, char** argv) {
   app.add_option("--image-levels", co.image_levels, "Steps over an image feature channel's range (1..255)");
   app.add_option("--log-scale-step", co.log_scale_step, "Grid step of the log-scales (0: half precision)");
   bool no_fine = false, keep_offsets = false;
+  app.add_option("--weighted-offsets", co.weighted_offsets, "Offset steps by the measured sensitivity of the views (0/1)");
+  app.add_option("--weighted-features", co.weighted_features, "Feature steps by the decoders' first-layer weights (0/1)");
   app.add_flag("--keep-offsets", keep_offsets, "Store the offsets of neural Gaussians no view keeps");
   app.add_flag("--no-mlp-fine", no_fine, "Do not store the MLP weights' rounding remainders");
   CLI11_PARSE(app, argc, argv);
@@ -104,6 +108,45 @@ int main(int argc, char** argv) {
   }
   std::printf("%-22s %10zu %8.2f\n", "total", total, double(total) / M);
 
+  if (std::getenv("GS_EXPERIMENT")) {  // entropy of channel deltas in Morton order (experiment)
+    const auto& q = cm->pos_q;
+    const size_t N = cm->anchor_count, F = size_t(cm->config.feature_dim), K3 = 3 * size_t(cm->config.k);
+    auto spread = [](uint64_t v) {
+      uint64_t r = 0;
+      for (int b = 0; b < 21; ++b) r |= ((v >> b) & 1ull) << (3 * b);
+      return r;
+    };
+    std::vector<std::pair<uint64_t, size_t>> mo(N);
+    for (size_t i = 0; i < N; ++i) {
+      const uint64_t x = q[3 * i] >> cm->residual_bits, y = q[3 * i + 1] >> cm->residual_bits, z = q[3 * i + 2] >> cm->residual_bits;
+      mo[i] = {spread(x) | spread(y) << 1 | spread(z) << 2, i};
+    }
+    std::sort(mo.begin(), mo.end());
+    auto H = [](const std::vector<int>& v) {
+      std::map<int, size_t> c;
+      for (int x : v) ++c[x];
+      double b = 0;
+      for (auto& kv : c) b -= double(kv.second) * std::log2(double(kv.second) / double(v.size()));
+      return b / 8;
+    };
+    auto report = [&](const char* name, size_t C, auto&& val) {
+      double raw = 0, sorted_delta = 0, file_delta = 0;
+      for (size_t ch = 0; ch < C; ++ch) {
+        std::vector<int> a(N), d(N), e(N);
+        for (size_t i = 0; i < N; ++i) {
+          a[i] = val(i, ch);
+          d[i] = val(mo[i].second, ch) - (i ? val(mo[i - 1].second, ch) : 0);
+          e[i] = val(i, ch) - (i ? val(i - 1, ch) : 0);
+        }
+        raw += H(a), sorted_delta += H(d), file_delta += H(e);
+      }
+      std::printf("EXP %s: raw %.0f B, Morton delta %.0f B, file-order delta %.0f B\n", name, raw, sorted_delta, file_delta);
+    };
+    report("features", F, [&](size_t i, size_t ch) { return int(cm->features[i * F + ch]); });
+    report("offsets", K3, [&](size_t i, size_t ch) { return int(cm->offsets[i * K3 + ch]); });
+    report("log-scales", 6, [&](size_t i, size_t ch) { return int(cm->log_scales[i * 6 + ch]); });
+    report("image", 13, [&](size_t i, size_t ch) { return int(cm->image_raw[i * 13 + ch]); });
+  }
   double best = 1e30;
   for (int i = 0; i < reps; ++i) {
     const double a = gs::platform::now_seconds();

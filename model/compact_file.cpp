@@ -66,6 +66,15 @@ class SectionLog {
   size_t mark_;
 };
 
+// Version 2's coded value of axis a of row r (see serialize_compact).
+uint32_t position_symbol(const CompactModel& m, size_t r, int a) {
+  const int rb = m.residual_bits;
+  const uint32_t q = m.pos_q[3 * r + size_t(a)], prev = r ? m.pos_q[3 * (r - 1) + size_t(a)] : 0u;
+  const uint32_t residual = q & ((1u << rb) - 1u);
+  const uint32_t cell_delta = ((q >> rb) - (prev >> rb)) & (detail::kMaxPositionQ >> rb);
+  return cell_delta << rb | residual;
+}
+
 }  // namespace
 
 std::vector<uint8_t> serialize_compact(const CompactModel& m, std::vector<CompactSection>* sections) {
@@ -95,15 +104,14 @@ std::vector<uint8_t> serialize_compact(const CompactModel& m, std::vector<Compac
   w.f32(m.log_scale_step);
   w.floats(m.log_scale_lo, 6);
   log.close("header");
-  // Positions: x as the difference to the previous row (rows are sorted by x), y and z as they
-  // are; each as 3 byte streams (low, middle, high).
+  // Positions: per axis, the voxel cell (q >> residual bits) as the difference to the previous
+  // row's modulo 2^(24 - residual bits) (rows are in Morton order, so neighbours are near) above
+  // the residual bits as they are, as 3 byte streams (low, middle, high). Version 1 wrote q, x as
+  // the difference to the previous row (rows sorted by x).
   std::vector<uint8_t> s(M);
   for (int a = 0; a < 3; ++a)
     for (int b = 0; b < 3; ++b) {
-      for (size_t r = 0; r < M; ++r) {
-        const uint32_t v = a == 0 ? m.pos_q[3 * r] - (r ? m.pos_q[3 * (r - 1)] : 0u) : m.pos_q[3 * r + size_t(a)];
-        s[r] = uint8_t(v >> (8 * b));
-      }
+      for (size_t r = 0; r < M; ++r) s[r] = uint8_t(position_symbol(m, r, a) >> (8 * b));
       code("positions", s.data(), M);
     }
   for (int b = 0; b < 2; ++b) {
@@ -119,7 +127,10 @@ std::vector<uint8_t> serialize_compact(const CompactModel& m, std::vector<Compac
   for (size_t ch = 0; ch < F; ++ch) code("features", channel_bytes(m.features, M, F, ch).data(), M);
   if (uses_image_features(c.image_features))
     for (size_t ch = 0; ch < size_t(kImageRawDim); ++ch)
-      code("image features", channel_bytes(m.image_raw, M, kImageRawDim, ch).data(), M);
+    {  // the difference to the previous row modulo 256 (version 1: the values)
+      for (size_t r = 0; r < M; ++r) s[r] = uint8_t(m.image_raw[r * kImageRawDim + ch] - (r ? m.image_raw[(r - 1) * kImageRawDim + ch] : 0));
+      code("image features", s.data(), M);
+    }
   for (int id = 0; id < kMlpCount; ++id) {
     if (id == kMlpImage && !uses_image_features(c.image_features)) continue;
     const QuantMlp& q = m.mlps[id];
@@ -236,10 +247,21 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
       GS_RETURN_IF_ERROR(stream(std::string("position ") + kAxis[a]));
       for (size_t i = 0; i < M; ++i) m.pos_q[3 * i + size_t(a)] |= uint32_t(s[i]) << (8 * b);
     }
-  for (size_t i = 1; i < M; ++i) {  // undo the x differences; the sum must stay a 24-bit value
-    const uint64_t x = uint64_t(m.pos_q[3 * i]) + m.pos_q[3 * (i - 1)];
-    if (x > detail::kMaxPositionQ) return bad("position x of anchor " + std::to_string(i), "exceeds 2^24 grid steps");
-    m.pos_q[3 * i] = uint32_t(x);
+  if (version == 1) {
+    for (size_t i = 1; i < M; ++i) {  // undo the x differences; the sum must stay a 24-bit value
+      const uint64_t x = uint64_t(m.pos_q[3 * i]) + m.pos_q[3 * (i - 1)];
+      if (x > detail::kMaxPositionQ) return bad("position x of anchor " + std::to_string(i), "exceeds 2^24 grid steps");
+      m.pos_q[3 * i] = uint32_t(x);
+    }
+  } else {
+    // Undo the cell differences modulo 2^(24 - residual bits) (every value stays a 24-bit one).
+    const int rb = m.residual_bits;
+    const uint32_t low = (1u << rb) - 1u, cells = detail::kMaxPositionQ >> rb;
+    for (size_t i = 0; i < M; ++i)
+      for (size_t a = 0; a < 3; ++a) {
+        const uint32_t v = m.pos_q[3 * i + a], prev_cell = i ? m.pos_q[3 * (i - 1) + a] >> rb : 0u;
+        m.pos_q[3 * i + a] = (((v >> rb) + prev_cell) & cells) << rb | (v & low);
+      }
   }
   m.offset_scale.assign(size_t(M), 0);
   for (int b = 0; b < 2; ++b) {
@@ -271,6 +293,8 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
   m.image_raw.assign(size_t(M) * R, 0);
   for (size_t ch = 0; ch < R; ++ch) {
     GS_RETURN_IF_ERROR(stream("image feature channel " + std::to_string(ch)));
+    if (version >= 2)  // undo the differences modulo 256
+      for (size_t i = 1; i < M; ++i) s[i] = uint8_t(s[i] + s[i - 1]);
     for (size_t i = 0; i < M; ++i) {
       if (s[i] > m.image_levels)
         return bad("image feature " + std::to_string(s[i]) + " of anchor " + std::to_string(i), "exceeds the " + std::to_string(m.image_levels) + " levels");

@@ -89,23 +89,30 @@ struct CompactModel {
 struct CompactOptions {
   bool prune = true;       // drop anchors none of whose Gaussians is kept (opacity > 0) in any view
   int residual_bits = 8;   // position sub-voxel bits
-  // Quantisation steps: the largest |value| of an anchor's offsets / of a feature channel is this
-  // many steps (1..127); image features span image_levels steps (1..255); log-scales are on a
-  // grid of log_scale_step (natural log; 0: fp16).
-  int offset_levels = 127;
-  int feature_levels = 127;
-  int image_levels = 255;
-  float log_scale_step = 0.0f;
+  // Quantisation steps (defaults measured in docs/MODEL.md "The compact model file"): the largest
+  // |value| of an anchor's offsets / of a feature channel is this many steps (1..127), or with
+  // weighting the steps give the rendered error that would have; image features span
+  // image_levels steps (1..255); log-scales are on a grid of log_scale_step (natural log; 0: fp16).
+  int offset_levels = 80;
+  int feature_levels = 80;
+  int image_levels = 15;
+  float log_scale_step = 0.02f;
   bool mlp_fine = true;    // store the MLP weights' rounding remainders (float path precision)
   // Store 0 for the offset of every neural Gaussian no view keeps (opacity <= 0 in all of them).
   bool prune_offsets = true;
+  // Feature steps per channel by the channel's weight in the decoders' first layers.
+  bool weighted_features = true;
+  // Offset steps per anchor by the measured sensitivity of the training views to its offsets
+  // (a render and a backward per view).
+  bool weighted_offsets = true;
 };
 
 // What compact_from_model did.
 struct CompactStats {
   size_t anchors_in = 0, anchors_out = 0, never_visible = 0;
   size_t views = 0;
-  size_t offsets_dropped = 0;  // neural Gaussians (of the kept anchors) whose offset was stored as 0
+  size_t offsets_dropped = 0;
+  size_t low_contribution = 0;  // anchors pruned for adding less than min_contribution to every view  // neural Gaussians (of the kept anchors) whose offset was stored as 0
   std::vector<size_t> source_rows;  // [anchors_out]: row r of the compact model is this float row
 };
 
