@@ -17,14 +17,6 @@ bool is_compact_file(const uint8_t* data, size_t size) { return size >= 8 && std
 
 namespace {
 
-// Channel ch of a row-major [rows, C] byte array as one stream.
-template <class T>
-std::vector<uint8_t> channel_bytes(const std::vector<T>& v, size_t rows, size_t C, size_t ch) {
-  std::vector<uint8_t> s(rows);
-  for (size_t r = 0; r < rows; ++r) s[r] = uint8_t(v[r * C + ch]);
-  return s;
-}
-
 void write_floats(detail::ByteWriter* w, const std::vector<float>& v) { w->floats(v.data(), v.size()); }
 
 // Order-0 entropy of n byte symbols, in bytes.
@@ -43,7 +35,7 @@ class SectionLog {
  public:
   SectionLog(const detail::ByteWriter* w, std::vector<CompactSection>* list) : w_(w), list_(list), mark_(w->bytes.size()) {}
   // The bytes written since the last mark belong to group (raw, or symbols coded from s[0..n)).
-  void close(const char* group, const uint8_t* s = nullptr, size_t n = 0) {
+  void close(const std::string& group, const uint8_t* s = nullptr, size_t n = 0) {
     const size_t now = w_->bytes.size();
     if (list_) {
       if (!list_->empty() && list_->back().group == group && !s && !list_->back().symbols) {
@@ -77,15 +69,42 @@ uint32_t position_symbol(const CompactModel& m, size_t r, int a) {
 
 }  // namespace
 
+std::vector<CompactStream> compact_streams(const CompactModel& m) {
+  const size_t M = m.anchor_count, K = size_t(m.config.k), F = size_t(m.config.feature_dim);
+  std::vector<CompactStream> out;
+  auto add = [&](const char* group, auto&& symbol_of_row) {
+    CompactStream cs{group, std::vector<uint8_t>(M)};
+    for (size_t r = 0; r < M; ++r) cs.symbols[r] = uint8_t(symbol_of_row(r));
+    out.push_back(std::move(cs));
+  };
+  // Positions: per axis, the voxel cell (q >> residual bits) as the difference to the previous
+  // row's modulo 2^(24 - residual bits) (rows are in Morton order, so neighbours are near) above
+  // the residual bits as they are, as 3 byte streams (low, middle, high). Version 1 wrote q, x as
+  // the difference to the previous row (rows sorted by x).
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b) add("positions", [&](size_t r) { return position_symbol(m, r, a) >> (8 * b); });
+  for (int b = 0; b < 2; ++b) add("offset scales", [&](size_t r) { return m.offset_scale[r] >> (8 * b); });
+  for (size_t ch = 0; ch < 3 * K; ++ch) add("offsets", [&](size_t r) { return m.offsets[r * 3 * K + ch]; });
+  for (size_t ch = 0; ch < 6; ++ch)
+    for (int b = 0; b < 2; ++b) add("log-scales", [&](size_t r) { return m.log_scales[6 * r + ch] >> (8 * b); });
+  for (size_t ch = 0; ch < F; ++ch) add("features", [&](size_t r) { return m.features[r * F + ch]; });
+  if (uses_image_features(m.config.image_features))  // the difference to the previous row modulo 256 (version 1: the values)
+    for (size_t ch = 0; ch < size_t(kImageRawDim); ++ch)
+      add("image features", [&](size_t r) {
+        return m.image_raw[r * kImageRawDim + ch] - (r ? m.image_raw[(r - 1) * kImageRawDim + ch] : 0);
+      });
+  return out;
+}
+
 std::vector<uint8_t> serialize_compact(const CompactModel& m, std::vector<CompactSection>* sections) {
   detail::ByteWriter w;
   SectionLog log(&w, sections);
-  auto code = [&](const char* group, const uint8_t* sym, size_t n) {
+  auto code = [&](const std::string& group, const uint8_t* sym, size_t n) {
     detail::rans_encode_bytes(sym, n, &w.bytes);
     log.close(group, sym, n);
   };
   const ModelConfig& c = m.config;
-  const size_t M = m.anchor_count, K = size_t(c.k), F = size_t(c.feature_dim);
+  const size_t M = m.anchor_count;
   w.raw(kCompactMagic, 8);
   w.u32(kCompactFileVersion);
   detail::write_model_header(&w, c, m.voxel_size, m.scene_extent);
@@ -104,33 +123,7 @@ std::vector<uint8_t> serialize_compact(const CompactModel& m, std::vector<Compac
   w.f32(m.log_scale_step);
   w.floats(m.log_scale_lo, 6);
   log.close("header");
-  // Positions: per axis, the voxel cell (q >> residual bits) as the difference to the previous
-  // row's modulo 2^(24 - residual bits) (rows are in Morton order, so neighbours are near) above
-  // the residual bits as they are, as 3 byte streams (low, middle, high). Version 1 wrote q, x as
-  // the difference to the previous row (rows sorted by x).
-  std::vector<uint8_t> s(M);
-  for (int a = 0; a < 3; ++a)
-    for (int b = 0; b < 3; ++b) {
-      for (size_t r = 0; r < M; ++r) s[r] = uint8_t(position_symbol(m, r, a) >> (8 * b));
-      code("positions", s.data(), M);
-    }
-  for (int b = 0; b < 2; ++b) {
-    for (size_t r = 0; r < M; ++r) s[r] = uint8_t(m.offset_scale[r] >> (8 * b));
-    code("offset scales", s.data(), M);
-  }
-  for (size_t ch = 0; ch < 3 * K; ++ch) code("offsets", channel_bytes(m.offsets, M, 3 * K, ch).data(), M);
-  for (size_t ch = 0; ch < 6; ++ch)
-    for (int b = 0; b < 2; ++b) {
-      for (size_t r = 0; r < M; ++r) s[r] = uint8_t(m.log_scales[6 * r + ch] >> (8 * b));
-      code("log-scales", s.data(), M);
-    }
-  for (size_t ch = 0; ch < F; ++ch) code("features", channel_bytes(m.features, M, F, ch).data(), M);
-  if (uses_image_features(c.image_features))
-    for (size_t ch = 0; ch < size_t(kImageRawDim); ++ch)
-    {  // the difference to the previous row modulo 256 (version 1: the values)
-      for (size_t r = 0; r < M; ++r) s[r] = uint8_t(m.image_raw[r * kImageRawDim + ch] - (r ? m.image_raw[(r - 1) * kImageRawDim + ch] : 0));
-      code("image features", s.data(), M);
-    }
+  for (const CompactStream& cs : compact_streams(m)) code(cs.group, cs.symbols.data(), cs.symbols.size());
   for (int id = 0; id < kMlpCount; ++id) {
     if (id == kMlpImage && !uses_image_features(c.image_features)) continue;
     const QuantMlp& q = m.mlps[id];

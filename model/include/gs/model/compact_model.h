@@ -140,6 +140,13 @@ struct CompactSection {
   size_t bytes = 0, symbols = 0;
   double entropy_bytes = 0;
 };
+// The byte streams the file entropy-codes, in file order (group names as in CompactSection), each
+// with one symbol per anchor: what serialize_compact codes and bench_entropy measures.
+struct CompactStream {
+  std::string group;
+  std::vector<uint8_t> symbols;
+};
+std::vector<CompactStream> compact_streams(const CompactModel& model);
 // sections (optional): appended in file order, one per stream or raw block.
 std::vector<uint8_t> serialize_compact(const CompactModel& model, std::vector<CompactSection>* sections = nullptr);
 Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, const std::string& source);
