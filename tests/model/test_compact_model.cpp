@@ -317,8 +317,8 @@ TEST_CASE("compact: the file round-trips and load_model reads it as the dequanti
 }
 
 TEST_CASE("compact: version 1 files are still read, and rewritten as the current version without loss") {
-  // The fuzz corpus's seed: a version 1 file written by hbgs compact, after the harness's first byte.
-  Expected<std::vector<uint8_t>> seed = platform::read_file(std::string(GS_SOURCE_DIR) + "/fuzz/corpus/compact/tiny.hbgc");
+  // A fuzz corpus seed: a version 1 file written by hbgs compact, after the harness's first byte.
+  Expected<std::vector<uint8_t>> seed = platform::read_file(std::string(GS_SOURCE_DIR) + "/fuzz/corpus/compact/tiny_v1.hbgc");
   REQUIRE_MESSAGE(seed.ok(), seed.status().to_string());
   REQUIRE(seed->size() > 21);
   const std::vector<uint8_t> v1(seed->begin() + 1, seed->end());
