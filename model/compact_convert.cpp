@@ -15,7 +15,9 @@ namespace gs::model {
 namespace {
 
 constexpr int kValidFlag = kImageRawDim - 1;  // image_raw's last channel: 1 when some view sees the anchor
-constexpr double kMinOffsetLevels = 8;  // TRY
+// Measured offset steps stay at most max |offset| / 8: coarser ones move a Gaussian by a good part
+// of its offset, where the small-error model behind the steps no longer holds.
+constexpr double kMinOffsetLevels = 8;
 
 // A copy of the live rows listed in keep (in that order).
 HybridModel select_rows(const HybridModel& m, const std::vector<size_t>& keep) {
@@ -140,7 +142,7 @@ Expected<CompactModel> compact_from_model(const HybridModel& model, const std::v
     // Rate-distortion: the steps that give the same rendered error (sum over anchors of the
     // measured sensitivity times step^2) as max / levels everywhere at the fewest bits are
     // proportional to 1 / sqrt(sensitivity) (each anchor then adds the same error), kept within
-    // [max / 127, 2 max] (finer would clip; coarser stores only zeros).
+    // [max / 127, max / kMinOffsetLevels] (finer would clip); the common factor by bisection.
     std::vector<double> sens;
     GS_RETURN_IF_ERROR(detail::offset_sensitivity_scan(sel, cameras, pool, &sens));
     double target = 0;

@@ -4,14 +4,15 @@
 // calibrated on the training views that the int8 MLP kernels need. load_model() (hybrid_model.h)
 // reads either file kind by its magic, so every float path can use a compact file.
 //
-// Quantisation (docs/MODEL.md "Compact model file"):
+// Quantisation (docs/MODEL.md "The compact model file"; rows in Morton order of their voxel cell):
 //   positions   q = round((p - origin) / step), step = voxel_size / 2^residual_bits, u24 per axis
 //               (the integer voxel coordinate is q >> residual_bits, the residual its low bits)
-//   offsets     int8, symmetric, one fp16 scale per anchor (per-channel scales cost 0.036 dB on the
-//               built-in scene: a few large offsets set every anchor's step)
+//   offsets     int8, symmetric, one fp16 step per anchor (per-channel scales cost 0.036 dB on the
+//               built-in scene: a few large offsets set every anchor's step), measured from the
+//               training views' sensitivity to the anchor; 0 for a Gaussian no view keeps
 //   log-scales  a uniform grid per channel, log_scale_lo[c] + q log_scale_step, q uint16
 //               (version 1 files: fp16)
-//   features    int8, symmetric, one scale per feature channel, max |channel| / feature levels
+//   features    int8, symmetric, one step per feature channel, by its first-layer weight
 //   image_raw   uint8, affine per channel in image_levels steps (the valid flag is exact; invalid
 //               rows stay all zero)
 //   MLPs        int8 weights with one float scale per output channel (rows of W1 and W2), float
