@@ -5,12 +5,11 @@
 // coder's overhead over it), then the test PSNR of the float model with one field at a time
 // replaced by its dequantised value (the rows the compact model keeps), so each field's share of
 // the accuracy loss is measured, and the decode time of the file (minimum of the repetitions).
-//   bench_compact RUN [--reps N] [--no-attribution] [quantisation options]
+//   bench_compact RUN [--reps N] [--no-attribution] [--delta-entropy] [quantisation options]
 //   bench_compact RUN --time-file A.hbgc [--time-file B.hbgc] [--reps N]   (decode time only)
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <map>
 #include <string>
 #include <vector>
@@ -69,6 +68,8 @@ int main(int argc, char** argv) {
   app.add_option("--weighted-features", co.weighted_features, "Feature steps by the decoders' first-layer weights (0/1)");
   app.add_flag("--keep-offsets", keep_offsets, "Store the offsets of neural Gaussians no view keeps");
   app.add_flag("--no-mlp-fine", no_fine, "Do not store the MLP weights' rounding remainders");
+  bool delta_entropy = false;
+  app.add_flag("--delta-entropy", delta_entropy, "Print each field's entropy as values and as differences to the previous row");
   std::vector<std::string> time_files;
   app.add_option("--time-file", time_files, "Also time decoding these .hbgc files (any version), then exit");
   CLI11_PARSE(app, argc, argv);
@@ -125,7 +126,7 @@ int main(int argc, char** argv) {
   }
   std::printf("%-22s %10zu %8.2f\n", "total", total, double(total) / M);
 
-  if (std::getenv("GS_EXPERIMENT")) {  // entropy of channel deltas in Morton order (experiment)
+  if (delta_entropy) {  // would predicting a field from the previous row pay? (order-0 entropies)
     const auto& q = cm->pos_q;
     const size_t N = cm->anchor_count, F = size_t(cm->config.feature_dim), K3 = 3 * size_t(cm->config.k);
     auto spread = [](uint64_t v) {
@@ -157,7 +158,7 @@ int main(int argc, char** argv) {
         }
         raw += H(a), sorted_delta += H(d), file_delta += H(e);
       }
-      std::printf("EXP %s: raw %.0f B, Morton delta %.0f B, file-order delta %.0f B\n", name, raw, sorted_delta, file_delta);
+      std::printf("%s: values %.0f B, differences in Morton order of the cells %.0f B, in file order %.0f B\n", name, raw, sorted_delta, file_delta);
     };
     report("features", F, [&](size_t i, size_t ch) { return int(cm->features[i * F + ch]); });
     report("offsets", K3, [&](size_t i, size_t ch) { return int(cm->offsets[i * K3 + ch]); });
