@@ -218,7 +218,7 @@ TEST_CASE("compact: every field is within its quantisation step of the float mod
   }
 }
 
-TEST_CASE("compact: measured offset steps never clip; offsets of Gaussians no view keeps are 0 and change no render") {
+TEST_CASE("compact: measured offset steps never clip, and offsets of Gaussians no view keeps are 0 and change no render") {
   const HybridModel m = random_model(ImageFeatureMode::kPaper, 17);
   const std::vector<Camera> cams = ring_cameras(6);
   CompactOptions opt;
