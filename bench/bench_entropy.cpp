@@ -2,8 +2,8 @@
 // bench_entropy: the compact model file's entropy coder (static rANS per byte stream,
 // gs/model/byte_rans.h) against libzstd at levels 3 and 19, on the byte streams a real compact
 // model file codes. The streams are rebuilt from the loaded model exactly as serialize_compact
-// lays them out (positions 9, offset scales 2, offsets 3k, log-scales 12, features F, image
-// features 13 in mode paper; one byte per anchor each). Reported per coder: total coded bytes,
+// lays them out (model::compact_streams: positions 9, offset scales 2, offsets 3k, log-scales 12,
+// features F, image features 13 in mode paper; one byte per anchor each). Reported per coder: total coded bytes,
 // bits per symbol, and decode speed (MB/s of decoded bytes, single thread, minimum and median of
 // the repetitions). zstd is measured two ways: one frame per stream (what replacing rANS stream by
 // stream would give) and one frame over all streams one after the other.
@@ -31,29 +31,10 @@ struct Stream {
   std::vector<uint8_t> bytes;
 };
 
-// serialize_compact's coded streams of a model, in file order.
+// serialize_compact's coded streams of a model, in file order (gs/model/compact_model.h).
 std::vector<Stream> coded_streams(const model::CompactModel& m) {
-  const size_t M = m.anchor_count, K = size_t(m.config.k), F = size_t(m.config.feature_dim);
   std::vector<Stream> out;
-  auto add = [&](const char* group, auto&& byte_of_row) {
-    Stream s{group, std::vector<uint8_t>(M)};
-    for (size_t r = 0; r < M; ++r) s.bytes[r] = uint8_t(byte_of_row(r));
-    out.push_back(std::move(s));
-  };
-  for (int a = 0; a < 3; ++a)  // x as the difference to the previous row (rows sorted by x)
-    for (int b = 0; b < 3; ++b)
-      add("positions", [&](size_t r) {
-        const uint32_t v = a == 0 ? m.pos_q[3 * r] - (r ? m.pos_q[3 * (r - 1)] : 0u) : m.pos_q[3 * r + size_t(a)];
-        return v >> (8 * b);
-      });
-  for (int b = 0; b < 2; ++b) add("offset scales", [&](size_t r) { return m.offset_scale[r] >> (8 * b); });
-  for (size_t ch = 0; ch < 3 * K; ++ch) add("offsets", [&](size_t r) { return m.offsets[r * 3 * K + ch]; });
-  for (size_t ch = 0; ch < 6; ++ch)
-    for (int b = 0; b < 2; ++b) add("log-scales", [&](size_t r) { return m.log_scales[6 * r + ch] >> (8 * b); });
-  for (size_t ch = 0; ch < F; ++ch) add("features", [&](size_t r) { return m.features[r * F + ch]; });
-  if (model::uses_image_features(m.config.image_features))
-    for (size_t ch = 0; ch < size_t(model::kImageRawDim); ++ch)
-      add("image features", [&](size_t r) { return m.image_raw[r * size_t(model::kImageRawDim) + ch]; });
+  for (model::CompactStream& cs : model::compact_streams(m)) out.push_back(Stream{std::move(cs.group), std::move(cs.symbols)});
   return out;
 }
 

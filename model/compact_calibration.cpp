@@ -8,6 +8,9 @@
 
 #include "float_backend.h"
 #include "gs/model/decode.h"
+#include "gs/model/step_graph.h"
+#include "gs/random.h"
+#include "gs/render.h"
 #include "gs/simd/kernel_table.h"
 
 namespace gs::model::detail {
@@ -26,6 +29,7 @@ Status scan_views(const HybridModel& m, const std::vector<Camera>& cams, platfor
   const size_t M = m.anchor_count, K = size_t(m.config.k);
   out->seen.assign(M, 0);
   out->kept.assign(M, 0);
+  out->kept_gaussian.assign(M * K, 0);
   ModelParamsT<float> p = model_params(m);
   simd::MlpShape pre[kMlpCount];
   for (int i = 0; i < kMlpCount; ++i) {
@@ -71,7 +75,46 @@ Status scan_views(const HybridModel& m, const std::vector<Camera>& cams, platfor
     const float* op = ws.y[kMlpOpacity].data();  // tanh(z) > 0 iff z > 0
     for (size_t v = 0; v < V; ++v)
       for (size_t j = 0; j < K; ++j)
-        if (op[v * K + j] > 0.0f) out->kept[rows[v]] = 1;
+        if (op[v * K + j] > 0.0f) out->kept[rows[v]] = 1, out->kept_gaussian[size_t(rows[v]) * K + j] = 1;
+  }
+  return Status::Ok();
+}
+
+Status offset_sensitivity_scan(const HybridModel& m, const std::vector<Camera>& cams, platform::ThreadPool* pool,
+                               std::vector<double>* out) {
+  const size_t M = m.anchor_count, K = size_t(m.config.k);
+  out->assign(M, 0.0);
+  if (M == 0 || cams.empty()) return Status::Ok();
+  int W = 1, H = 1;
+  for (const Camera& c : cams) W = std::max(W, c.intr.width), H = std::max(H, c.intr.height);
+  Renderer renderer;
+  FloatBackend be;
+  StepWorkspace<float> ws;
+  Expected<RenderCapacity> rc = plan_model_pipeline(m, M, W, H, W, H, pool, &simd::best_kernel_table(), &renderer, &be, &ws,
+                                                    /*training=*/true);
+  if (!rc.ok()) return rc.status();
+  const ModelParamsT<float> p = model_params(m);
+  gs::SplitMix64 rng{0x5eed0ff5e7ull};
+  for (const Camera& cam : cams) {
+    size_t V = 0;
+    const size_t N = decode_view(be, p, cam, ws, &V);
+    GS_RETURN_IF_ERROR(be.render_fwd(cam, ws.ng, ws.rgb.data()));
+    const size_t values = size_t(cam.intr.width) * size_t(cam.intr.height) * 3;
+    for (size_t i = 0; i < values; i += 64) {
+      const uint64_t bits = rng.next();
+      for (size_t b = 0; b < 64 && i + b < values; ++b) ws.v_rgb[i + b] = (bits >> b) & 1u ? 1.0f : -1.0f;
+    }
+    double v_pose[6] = {0, 0, 0, 0, 0, 0};
+    GS_RETURN_IF_ERROR(be.render_bwd(ws.v_rgb.data(), ws.v_means.data(), ws.v_log_scales.data(), ws.v_quats.data(),
+                                     ws.v_opacities.data(), ws.v_colors.data(), ws.v_means2d.data(), v_pose));
+    for (size_t i = 0; i < N; ++i) {
+      const size_t row = ws.rows[ws.ng.source[i] / K];
+      const float* ls = &m.log_scales[6 * row];
+      for (int l = 0; l < 3; ++l) {
+        const double g = double(ws.v_means[3 * i + size_t(l)]) * std::exp(double(ls[l]));
+        (*out)[row] += g * g;
+      }
+    }
   }
   return Status::Ok();
 }

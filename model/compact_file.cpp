@@ -17,22 +17,94 @@ bool is_compact_file(const uint8_t* data, size_t size) { return size >= 8 && std
 
 namespace {
 
-// Channel ch of a row-major [rows, C] byte array as one stream.
-template <class T>
-std::vector<uint8_t> channel_bytes(const std::vector<T>& v, size_t rows, size_t C, size_t ch) {
-  std::vector<uint8_t> s(rows);
-  for (size_t r = 0; r < rows; ++r) s[r] = uint8_t(v[r * C + ch]);
-  return s;
+void write_floats(detail::ByteWriter* w, const std::vector<float>& v) { w->floats(v.data(), v.size()); }
+
+// Order-0 entropy of n byte symbols, in bytes.
+double entropy_bytes(const uint8_t* s, size_t n) {
+  if (n == 0) return 0;
+  size_t counts[256] = {};
+  for (size_t i = 0; i < n; ++i) ++counts[s[i]];
+  double bits = 0;
+  for (size_t c : counts)
+    if (c) bits -= double(c) * std::log2(double(c) / double(n));
+  return bits / 8;
 }
 
-void write_floats(detail::ByteWriter* w, const std::vector<float>& v) { w->floats(v.data(), v.size()); }
+// Records the file's parts for CompactSection reports (no-op without a list).
+class SectionLog {
+ public:
+  SectionLog(const detail::ByteWriter* w, std::vector<CompactSection>* list) : w_(w), list_(list), mark_(w->bytes.size()) {}
+  // The bytes written since the last mark belong to group (raw, or symbols coded from s[0..n)).
+  void close(const std::string& group, const uint8_t* s = nullptr, size_t n = 0) {
+    const size_t now = w_->bytes.size();
+    if (list_) {
+      if (!list_->empty() && list_->back().group == group && !s && !list_->back().symbols) {
+        list_->back().bytes += now - mark_;
+      } else {
+        CompactSection c;
+        c.group = group;
+        c.bytes = now - mark_;
+        c.symbols = n;
+        c.entropy_bytes = s ? entropy_bytes(s, n) : 0.0;
+        list_->push_back(std::move(c));
+      }
+    }
+    mark_ = now;
+  }
+
+ private:
+  const detail::ByteWriter* w_;
+  std::vector<CompactSection>* list_;
+  size_t mark_;
+};
+
+// Version 2's coded value of axis a of row r (see serialize_compact).
+uint32_t position_symbol(const CompactModel& m, size_t r, int a) {
+  const int rb = m.residual_bits;
+  const uint32_t q = m.pos_q[3 * r + size_t(a)], prev = r ? m.pos_q[3 * (r - 1) + size_t(a)] : 0u;
+  const uint32_t residual = q & ((1u << rb) - 1u);
+  const uint32_t cell_delta = ((q >> rb) - (prev >> rb)) & (detail::kMaxPositionQ >> rb);
+  return cell_delta << rb | residual;
+}
 
 }  // namespace
 
-std::vector<uint8_t> serialize_compact(const CompactModel& m) {
+std::vector<CompactStream> compact_streams(const CompactModel& m) {
+  const size_t M = m.anchor_count, K = size_t(m.config.k), F = size_t(m.config.feature_dim);
+  std::vector<CompactStream> out;
+  auto add = [&](const char* group, auto&& symbol_of_row) {
+    CompactStream cs{group, std::vector<uint8_t>(M)};
+    for (size_t r = 0; r < M; ++r) cs.symbols[r] = uint8_t(symbol_of_row(r));
+    out.push_back(std::move(cs));
+  };
+  // Positions: per axis, the voxel cell (q >> residual bits) as the difference to the previous
+  // row's modulo 2^(24 - residual bits) (rows are in Morton order, so neighbours are near) above
+  // the residual bits as they are, as 3 byte streams (low, middle, high). Version 1 wrote q, x as
+  // the difference to the previous row (rows sorted by x).
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b) add("positions", [&](size_t r) { return position_symbol(m, r, a) >> (8 * b); });
+  for (int b = 0; b < 2; ++b) add("offset scales", [&](size_t r) { return m.offset_scale[r] >> (8 * b); });
+  for (size_t ch = 0; ch < 3 * K; ++ch) add("offsets", [&](size_t r) { return m.offsets[r * 3 * K + ch]; });
+  for (size_t ch = 0; ch < 6; ++ch)
+    for (int b = 0; b < 2; ++b) add("log-scales", [&](size_t r) { return m.log_scales[6 * r + ch] >> (8 * b); });
+  for (size_t ch = 0; ch < F; ++ch) add("features", [&](size_t r) { return m.features[r * F + ch]; });
+  if (uses_image_features(m.config.image_features))  // the difference to the previous row modulo 256 (version 1: the values)
+    for (size_t ch = 0; ch < size_t(kImageRawDim); ++ch)
+      add("image features", [&](size_t r) {
+        return m.image_raw[r * kImageRawDim + ch] - (r ? m.image_raw[(r - 1) * kImageRawDim + ch] : 0);
+      });
+  return out;
+}
+
+std::vector<uint8_t> serialize_compact(const CompactModel& m, std::vector<CompactSection>* sections) {
   detail::ByteWriter w;
+  SectionLog log(&w, sections);
+  auto code = [&](const std::string& group, const uint8_t* sym, size_t n) {
+    detail::rans_encode_bytes(sym, n, &w.bytes);
+    log.close(group, sym, n);
+  };
   const ModelConfig& c = m.config;
-  const size_t M = m.anchor_count, K = size_t(c.k), F = size_t(c.feature_dim);
+  const size_t M = m.anchor_count;
   w.raw(kCompactMagic, 8);
   w.u32(kCompactFileVersion);
   detail::write_model_header(&w, c, m.voxel_size, m.scene_extent);
@@ -46,31 +118,12 @@ std::vector<uint8_t> serialize_compact(const CompactModel& m) {
     w.floats(m.image_lo, kImageRawDim);
     w.floats(m.image_hi, kImageRawDim);
   }
-  // Positions: x as the difference to the previous row (rows are sorted by x), y and z as they
-  // are; each as 3 byte streams (low, middle, high).
-  std::vector<uint8_t> s(M);
-  for (int a = 0; a < 3; ++a)
-    for (int b = 0; b < 3; ++b) {
-      for (size_t r = 0; r < M; ++r) {
-        const uint32_t v = a == 0 ? m.pos_q[3 * r] - (r ? m.pos_q[3 * (r - 1)] : 0u) : m.pos_q[3 * r + size_t(a)];
-        s[r] = uint8_t(v >> (8 * b));
-      }
-      detail::rans_encode_bytes(s.data(), M, &w.bytes);
-    }
-  for (int b = 0; b < 2; ++b) {
-    for (size_t r = 0; r < M; ++r) s[r] = uint8_t(m.offset_scale[r] >> (8 * b));
-    detail::rans_encode_bytes(s.data(), M, &w.bytes);
-  }
-  for (size_t ch = 0; ch < 3 * K; ++ch) detail::rans_encode_bytes(channel_bytes(m.offsets, M, 3 * K, ch).data(), M, &w.bytes);
-  for (size_t ch = 0; ch < 6; ++ch)
-    for (int b = 0; b < 2; ++b) {
-      for (size_t r = 0; r < M; ++r) s[r] = uint8_t(m.log_scales[6 * r + ch] >> (8 * b));
-      detail::rans_encode_bytes(s.data(), M, &w.bytes);
-    }
-  for (size_t ch = 0; ch < F; ++ch) detail::rans_encode_bytes(channel_bytes(m.features, M, F, ch).data(), M, &w.bytes);
-  if (uses_image_features(c.image_features))
-    for (size_t ch = 0; ch < size_t(kImageRawDim); ++ch)
-      detail::rans_encode_bytes(channel_bytes(m.image_raw, M, kImageRawDim, ch).data(), M, &w.bytes);
+  // Version 2: the image feature levels and the log-scale grid (step 0: fp16 as in version 1).
+  w.u32(uint32_t(m.image_levels));
+  w.f32(m.log_scale_step);
+  w.floats(m.log_scale_lo, 6);
+  log.close("header");
+  for (const CompactStream& cs : compact_streams(m)) code(cs.group, cs.symbols.data(), cs.symbols.size());
   for (int id = 0; id < kMlpCount; ++id) {
     if (id == kMlpImage && !uses_image_features(c.image_features)) continue;
     const QuantMlp& q = m.mlps[id];
@@ -84,11 +137,20 @@ std::vector<uint8_t> serialize_compact(const CompactModel& m) {
     w.raw(q.w2.data(), q.w2.size());
     write_floats(&w, q.w2_scale);
     write_floats(&w, q.b2);
+    // Version 2: 1 and the weights' rounding remainders, or 0.
+    const bool fine = !q.w1_fine.empty() && !q.w2_fine.empty();
+    w.u8(fine ? 1 : 0);
+    if (fine) {
+      w.raw(q.w1_fine.data(), q.w1_fine.size());
+      w.raw(q.w2_fine.data(), q.w2_fine.size());
+    }
     write_floats(&w, q.ranges.in_absmax);
     write_floats(&w, q.ranges.hidden_max);
     write_floats(&w, q.ranges.out_absmax);
+    log.close("MLPs");
   }
   w.u64(detail::fnv1a64(w.bytes.data(), w.bytes.size()));
+  log.close("header");
   return std::move(w.bytes);
 }
 
@@ -100,8 +162,8 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
     return parse_error(source + ": not an hbgs compact model file (the first 8 bytes are not \"HBGSCMPT\")");
   const uint32_t version = r.u32("the format version");
   if (!r.status().ok()) return r.status();
-  if (version != kCompactFileVersion)
-    return unsupported(source + ": compact model format version " + std::to_string(version) + ", but this hbgs reads version " +
+  if (version < 1 || version > kCompactFileVersion)
+    return unsupported(source + ": compact model format version " + std::to_string(version) + ", but this hbgs reads versions 1 to " +
                        std::to_string(kCompactFileVersion) + " (remake it with hbgs compact)");
   // The checksum covers the whole file and is verified before any size is trusted.
   if (size < 20 || detail::fnv1a64(data, size - 8) != bytes::load_u64(data + size - 8))
@@ -152,6 +214,17 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
       m.image_hi[ch] = hi[ch];
     }
   }
+  if (version >= 2) {
+    const uint32_t levels = r.u32("the image feature levels");
+    m.log_scale_step = r.f32("the log-scale step");
+    if (!r.floats(m.log_scale_lo, 6, "the log-scale minima")) return r.status();
+    if (levels < 1 || levels > 255) return bad("image feature levels " + std::to_string(levels), "must be in 1..255");
+    m.image_levels = int(levels);
+    if (!(m.log_scale_step >= 0) || !std::isfinite(m.log_scale_step)) return bad("log-scale step", "must be finite and >= 0");
+    for (float lo : m.log_scale_lo)
+      if (!std::isfinite(lo) || !std::isfinite(lo + 65535.0f * m.log_scale_step))
+        return bad("log-scale grid", "must stay finite over its 65,536 steps");
+  }
   size_t pos = r.offset();
   std::vector<uint8_t> s(static_cast<size_t>(M));
   std::string err;
@@ -167,10 +240,21 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
       GS_RETURN_IF_ERROR(stream(std::string("position ") + kAxis[a]));
       for (size_t i = 0; i < M; ++i) m.pos_q[3 * i + size_t(a)] |= uint32_t(s[i]) << (8 * b);
     }
-  for (size_t i = 1; i < M; ++i) {  // undo the x differences; the sum must stay a 24-bit value
-    const uint64_t x = uint64_t(m.pos_q[3 * i]) + m.pos_q[3 * (i - 1)];
-    if (x > detail::kMaxPositionQ) return bad("position x of anchor " + std::to_string(i), "exceeds 2^24 grid steps");
-    m.pos_q[3 * i] = uint32_t(x);
+  if (version == 1) {
+    for (size_t i = 1; i < M; ++i) {  // undo the x differences; the sum must stay a 24-bit value
+      const uint64_t x = uint64_t(m.pos_q[3 * i]) + m.pos_q[3 * (i - 1)];
+      if (x > detail::kMaxPositionQ) return bad("position x of anchor " + std::to_string(i), "exceeds 2^24 grid steps");
+      m.pos_q[3 * i] = uint32_t(x);
+    }
+  } else {
+    // Undo the cell differences modulo 2^(24 - residual bits) (every value stays a 24-bit one).
+    const int rb = m.residual_bits;
+    const uint32_t low = (1u << rb) - 1u, cells = detail::kMaxPositionQ >> rb;
+    for (size_t i = 0; i < M; ++i)
+      for (size_t a = 0; a < 3; ++a) {
+        const uint32_t v = m.pos_q[3 * i + a], prev_cell = i ? m.pos_q[3 * (i - 1) + a] >> rb : 0u;
+        m.pos_q[3 * i + a] = (((v >> rb) + prev_cell) & cells) << rb | (v & low);
+      }
   }
   m.offset_scale.assign(size_t(M), 0);
   for (int b = 0; b < 2; ++b) {
@@ -191,8 +275,9 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
       GS_RETURN_IF_ERROR(stream("log-scale channel " + std::to_string(ch)));
       for (size_t i = 0; i < M; ++i) m.log_scales[6 * i + ch] |= uint16_t(s[i] << (8 * b));
     }
-  for (size_t i = 0; i < M * 6; ++i)
-    if ((m.log_scales[i] & 0x7c00u) == 0x7c00u) return bad("log-scale of anchor " + std::to_string(i / 6), "is not finite");
+  if (m.log_scale_step == 0)
+    for (size_t i = 0; i < M * 6; ++i)
+      if ((m.log_scales[i] & 0x7c00u) == 0x7c00u) return bad("log-scale of anchor " + std::to_string(i / 6), "is not finite");
   m.features.assign(size_t(M) * F, 0);
   for (size_t ch = 0; ch < F; ++ch) {
     GS_RETURN_IF_ERROR(stream("feature channel " + std::to_string(ch)));
@@ -201,7 +286,13 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
   m.image_raw.assign(size_t(M) * R, 0);
   for (size_t ch = 0; ch < R; ++ch) {
     GS_RETURN_IF_ERROR(stream("image feature channel " + std::to_string(ch)));
-    for (size_t i = 0; i < M; ++i) m.image_raw[i * R + ch] = s[i];
+    if (version >= 2)  // undo the differences modulo 256
+      for (size_t i = 1; i < M; ++i) s[i] = uint8_t(s[i] + s[i - 1]);
+    for (size_t i = 0; i < M; ++i) {
+      if (s[i] > m.image_levels)
+        return bad("image feature " + std::to_string(s[i]) + " of anchor " + std::to_string(i), "exceeds the " + std::to_string(m.image_levels) + " levels");
+      m.image_raw[i * R + ch] = s[i];
+    }
   }
   detail::ByteReader t(data, body_end, source);
   t.skip(pos);
@@ -238,6 +329,20 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
     if (!t.bytes(q.w2.data(), q.w2.size(), "MLP weights")) return t.status();
     GS_RETURN_IF_ERROR(fl(&q.w2_scale, O, "weight scales", true));
     GS_RETURN_IF_ERROR(fl(&q.b2, O, "biases", false));
+    if (version >= 2) {
+      const uint8_t fine = t.u8("the MLP remainder flag");
+      if (!t.status().ok()) return t.status();
+      if (fine > 1) return bad("MLP " + std::to_string(id) + " remainder flag " + std::to_string(fine), "must be 0 or 1");
+      if (fine) {
+        q.w1_fine.assign(H * I, 0);
+        q.w2_fine.assign(O * H, 0);
+        if (!t.bytes(q.w1_fine.data(), q.w1_fine.size(), "MLP weight remainders")) return t.status();
+        if (!t.bytes(q.w2_fine.data(), q.w2_fine.size(), "MLP weight remainders")) return t.status();
+        for (const std::vector<int8_t>* f : {&q.w1_fine, &q.w2_fine})
+          for (int8_t v : *f)
+            if (v == -128) return bad("MLP " + std::to_string(id) + " weight remainder -128", "must be in -127..127");
+      }
+    }
     GS_RETURN_IF_ERROR(fl(&q.ranges.in_absmax, I, "input ranges", true));
     GS_RETURN_IF_ERROR(fl(&q.ranges.hidden_max, H, "hidden ranges", true));
     GS_RETURN_IF_ERROR(fl(&q.ranges.out_absmax, O, "output ranges", true));

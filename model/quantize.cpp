@@ -26,34 +26,41 @@ int8_t q8(float v, float scale) {
   return int8_t(std::clamp(std::lround(double(v) / double(scale)), -127L, 127L));
 }
 
-void quantize_channels(const float* src, size_t rows, size_t C, std::vector<int8_t>* q, std::vector<float>* scale) {
+void quantize_channels(const float* src, size_t rows, size_t C, int levels, std::vector<int8_t>* q, std::vector<float>* scale) {
   scale->assign(C, 0.0f);
   for (size_t r = 0; r < rows; ++r)
     for (size_t c = 0; c < C; ++c) (*scale)[c] = std::max((*scale)[c], std::fabs(src[r * C + c]));
-  for (float& s : *scale) s /= 127.0f;
+  for (float& s : *scale) s /= float(levels);
   q->resize(rows * C);
   for (size_t r = 0; r < rows; ++r)
     for (size_t c = 0; c < C; ++c) (*q)[r * C + c] = q8(src[r * C + c], (*scale)[c]);
 }
 
-void quantize_mlp(const Mlp& m, QuantMlp* q) {
+void quantize_mlp(const Mlp& m, bool fine, QuantMlp* q) {
   const simd::MlpShape& s = m.shape;
   q->shape = s;
   const float* p = m.params.data();
   const size_t I = size_t(s.in), H = size_t(s.hidden), O = size_t(s.out);
-  auto rows = [](const float* w, size_t n_rows, size_t n_cols, std::vector<int8_t>* qw, std::vector<float>* sc) {
+  auto rows = [fine](const float* w, size_t n_rows, size_t n_cols, std::vector<int8_t>* qw, std::vector<float>* sc,
+                     std::vector<int8_t>* qf) {
     qw->resize(n_rows * n_cols);
     sc->assign(n_rows, 0.0f);
+    qf->assign(fine ? n_rows * n_cols : 0, 0);
     for (size_t r = 0; r < n_rows; ++r) {
       float a = 0;
       for (size_t c = 0; c < n_cols; ++c) a = std::max(a, std::fabs(w[r * n_cols + c]));
       (*sc)[r] = a / 127.0f;
-      for (size_t c = 0; c < n_cols; ++c) (*qw)[r * n_cols + c] = q8(w[r * n_cols + c], (*sc)[r]);
+      for (size_t c = 0; c < n_cols; ++c) {
+        const int8_t v = q8(w[r * n_cols + c], (*sc)[r]);
+        (*qw)[r * n_cols + c] = v;
+        // The remainder is within half a step (|v| <= 127 never clips: the row's maximum is 127 steps).
+        if (fine) (*qf)[r * n_cols + c] = q8(w[r * n_cols + c] - float(v) * (*sc)[r], (*sc)[r] / 254.0f);
+      }
     }
   };
-  rows(p, H, I, &q->w1, &q->w1_scale);
+  rows(p, H, I, &q->w1, &q->w1_scale, &q->w1_fine);
   q->b1.assign(p + Mlp::off_b1(s), p + Mlp::off_b1(s) + H);
-  rows(p + Mlp::off_W2(s), O, H, &q->w2, &q->w2_scale);
+  rows(p + Mlp::off_W2(s), O, H, &q->w2, &q->w2_scale, &q->w2_fine);
   q->b2.assign(p + Mlp::off_b2(s), p + Mlp::off_b2(s) + O);
 }
 
@@ -63,12 +70,15 @@ Mlp dequantize_mlp(const QuantMlp& q) {
   m.params.assign(Mlp::param_count(q.shape), 0.0f);
   const size_t I = size_t(q.shape.in), H = size_t(q.shape.hidden), O = size_t(q.shape.out);
   float* p = m.params.data();
+  auto weight = [](const std::vector<int8_t>& w, const std::vector<int8_t>& fine, size_t i, float scale) {
+    return fine.empty() ? float(w[i]) * scale : (float(w[i]) + float(fine[i]) / 254.0f) * scale;
+  };
   for (size_t r = 0; r < H; ++r)
-    for (size_t c = 0; c < I; ++c) p[r * I + c] = float(q.w1[r * I + c]) * q.w1_scale[r];
+    for (size_t c = 0; c < I; ++c) p[r * I + c] = weight(q.w1, q.w1_fine, r * I + c, q.w1_scale[r]);
   std::copy(q.b1.begin(), q.b1.end(), p + Mlp::off_b1(q.shape));
   float* w2 = p + Mlp::off_W2(q.shape);
   for (size_t r = 0; r < O; ++r)
-    for (size_t c = 0; c < H; ++c) w2[r * H + c] = float(q.w2[r * H + c]) * q.w2_scale[r];
+    for (size_t c = 0; c < H; ++c) w2[r * H + c] = weight(q.w2, q.w2_fine, r * H + c, q.w2_scale[r]);
   std::copy(q.b2.begin(), q.b2.end(), p + Mlp::off_b2(q.shape));
   return m;
 }

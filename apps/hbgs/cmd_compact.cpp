@@ -58,6 +58,16 @@ Command add_compact_command(CLI::App& parent) {
       ->check(CLI::Range(0, gs::io::kMaxImageSide));
   sub->add_option("--residual-bits", o->compact.residual_bits, "Sub-voxel bits of the anchor positions")
       ->capture_default_str()->check(CLI::Range(0, 12));
+  sub->add_option("--offset-levels", o->compact.offset_levels,
+                  "Offset precision: the rendered error of max |offset| / N steps per anchor (1..127)")
+      ->capture_default_str()->check(CLI::Range(1, 127));
+  sub->add_option("--feature-levels", o->compact.feature_levels,
+                  "Feature precision: the first-layer error of max |channel| / N steps per channel (1..127)")
+      ->capture_default_str()->check(CLI::Range(1, 127));
+  sub->add_option("--image-levels", o->compact.image_levels, "Steps over each image feature channel's range (1..255)")
+      ->capture_default_str()->check(CLI::Range(1, 255));
+  sub->add_option("--log-scale-step", o->compact.log_scale_step, "Grid step of the anchor log-scales (natural log; 0: fp16)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
   sub->add_flag("--no-prune", args->no_prune, "Keep anchors that no training view decodes a Gaussian from");
   sub->add_flag("--no-eval", args->no_eval, "Do not measure the test PSNR of the float and the compact model");
   sub->add_option("--threads", o->threads, "Worker threads (0: all CPUs)")->capture_default_str()->check(CLI::Range(0, 4096));

@@ -19,6 +19,7 @@
 #include "gs/model/hybrid_model.h"
 #include "gs/model/quant_decoder.h"
 #include "gs/model/model_renderer.h"
+#include "gs/platform/file.h"
 #include "support/alloc_counter.h"
 #include "support/model_fixtures.h"
 #include "support/temp_dir.h"
@@ -144,11 +145,14 @@ std::vector<Camera> ring_cameras(int n) {
 }
 
 TEST_CASE("compact: every field is within its quantisation step of the float model") {
-  for (ImageFeatureMode mode : {ImageFeatureMode::kPaper, ImageFeatureMode::kNone}) {
+  for (ImageFeatureMode mode : {ImageFeatureMode::kPaper, ImageFeatureMode::kNone})
+    for (bool fine : {true, false}) {
     CAPTURE(int(mode));
+    CAPTURE(fine);
     const HybridModel m = random_model(mode, 11);
     CompactOptions opt;
     opt.prune = false;
+    opt.mlp_fine = fine;
     CompactStats st;
     Expected<CompactModel> cm = compact_from_model(m, {}, opt, nullptr, &st);
     REQUIRE_MESSAGE(cm.ok(), cm.status().to_string());
@@ -160,28 +164,37 @@ TEST_CASE("compact: every field is within its quantisation step of the float mod
     std::vector<float> feat_absmax(F, 0.0f);
     for (size_t r = 0; r < m.anchor_count; ++r)
       for (size_t c = 0; c < F; ++c) feat_absmax[c] = std::max(feat_absmax[c], std::fabs(m.features[r * F + c]));
+    // Feature steps never clip (at least max / 127) and are at most max / 127 * 127 / levels * their weight.
+    for (size_t c = 0; c < F; ++c) REQUIRE(cm->feature_scale[c] * 127.0f >= feat_absmax[c] * 0.9999f);
+    REQUIRE(cm->log_scale_step == opt.log_scale_step);
     for (size_t r = 0; r < m.anchor_count; ++r) {
-      const size_t s = st.source_rows[r];  // rows are reordered (sorted on the grid)
+      const size_t s = st.source_rows[r];  // rows are reordered (Morton order on the grid)
       for (int a = 0; a < 3; ++a)
         REQUIRE(std::fabs(double(d.positions[3 * r + size_t(a)]) - double(m.positions[3 * s + size_t(a)])) <= 0.5 * pos_step * 1.001 + 1e-6);
       float off_max = 0;
       for (size_t i = 0; i < 3 * K; ++i) off_max = std::max(off_max, std::fabs(m.offsets[3 * K * s + i]));
-      for (size_t i = 0; i < 3 * K; ++i)  // one step of an fp16 scale of max/127, which can round up by 2^-11
-        REQUIRE(std::fabs(d.offsets[3 * K * r + i] - m.offsets[3 * K * s + i]) <= 0.5f * off_max / 127.0f * 1.002f + 1e-7f);
+      // Without cameras: one step of max / levels, its fp16 rounded up so nothing clips.
+      const float off_step = half_to_float(cm->offset_scale[r]);
+      REQUIRE(off_step * 127.0f >= off_max);
+      REQUIRE(off_step <= off_max / float(opt.offset_levels) * 1.002f + 1e-7f);
+      for (size_t i = 0; i < 3 * K; ++i)
+        REQUIRE(std::fabs(d.offsets[3 * K * r + i] - m.offsets[3 * K * s + i]) <= 0.5f * off_step * 1.0001f + 1e-7f);
       for (size_t i = 0; i < 6; ++i)
-        REQUIRE(std::fabs(d.log_scales[6 * r + i] - m.log_scales[6 * s + i]) <= std::fabs(m.log_scales[6 * s + i]) * 0x1p-11f);
+        REQUIRE(std::fabs(d.log_scales[6 * r + i] - m.log_scales[6 * s + i]) <= 0.5f * cm->log_scale_step * 1.001f + 1e-5f);
       for (size_t c = 0; c < F; ++c)
-        REQUIRE(std::fabs(d.features[F * r + c] - m.features[F * s + c]) <= 0.5f * feat_absmax[c] / 127.0f * 1.0001f);
+        REQUIRE(std::fabs(d.features[F * r + c] - m.features[F * s + c]) <= 0.5f * cm->feature_scale[c] * 1.0001f);
       if (mode == ImageFeatureMode::kPaper) {
         const bool valid = m.image_raw[s * kImageRawDim + kImageRawDim - 1] >= 0.5f;
         for (int ch = 0; ch < kImageRawDim; ++ch) {
           const float want = m.image_raw[s * kImageRawDim + size_t(ch)], got = d.image_raw[r * kImageRawDim + size_t(ch)];
           if (!valid) REQUIRE(got == 0.0f);  // an unseen anchor stays exactly all zero
-          else REQUIRE(std::fabs(got - want) <= 0.5f * (cm->image_hi[ch] - cm->image_lo[ch]) / 255.0f * 1.001f + 1e-6f);
+          else REQUIRE(std::fabs(got - want) <= 0.5f * (cm->image_hi[ch] - cm->image_lo[ch]) / float(opt.image_levels) * 1.001f + 1e-6f);
         }
       }
     }
-    // MLP weights: per output row, half a step of max|row| / 127; biases exact.
+    // MLP weights: per output row, half a step of max|row| / 127 (with the remainders, of that
+    // step / 254); biases exact.
+    const float weight_step = fine ? 1.0f / (127.0f * 254.0f) : 1.0f / 127.0f;
     for (int id = 0; id < kMlpCount; ++id) {
       if (m.mlps[id].params.empty()) continue;
       CAPTURE(id);
@@ -193,7 +206,8 @@ TEST_CASE("compact: every field is within its quantisation step of the float mod
         for (size_t r = 0; r < rows; ++r) {
           float mx = 0;
           for (size_t c = 0; c < cols; ++c) mx = std::max(mx, std::fabs(a[off + r * cols + c]));
-          for (size_t c = 0; c < cols; ++c) REQUIRE(std::fabs(a[off + r * cols + c] - b[off + r * cols + c]) <= 0.5f * mx / 127.0f * 1.0001f);
+          for (size_t c = 0; c < cols; ++c)
+            REQUIRE(std::fabs(a[off + r * cols + c] - b[off + r * cols + c]) <= 0.5f * mx * weight_step * 1.01f + mx * 1e-6f);
         }
       };
       check_rows(0, size_t(sh.hidden), size_t(sh.in));
@@ -201,6 +215,52 @@ TEST_CASE("compact: every field is within its quantisation step of the float mod
       for (size_t i = Mlp::off_b1(sh); i < Mlp::off_b1(sh) + size_t(sh.hidden); ++i) REQUIRE(a[i] == b[i]);
       for (size_t i = Mlp::off_b2(sh); i < Mlp::off_b2(sh) + size_t(sh.out); ++i) REQUIRE(a[i] == b[i]);
     }
+  }
+}
+
+TEST_CASE("compact: measured offset steps never clip, and offsets of Gaussians no view keeps are 0 and change no render") {
+  const HybridModel m = random_model(ImageFeatureMode::kPaper, 17);
+  const std::vector<Camera> cams = ring_cameras(6);
+  CompactOptions opt;
+  opt.prune = false;  // same rows, so the float model can be compared row by row
+  CompactStats st;
+  Expected<CompactModel> cm = compact_from_model(m, cams, opt, nullptr, &st);
+  REQUIRE_MESSAGE(cm.ok(), cm.status().to_string());
+  const size_t K = size_t(m.config.k);
+  const HybridModel d = dequantize(*cm);
+  // The float model with exactly the dropped offsets set to 0 (a dropped offset is stored as 0
+  // and lies outside half a step of its value, or is 0 within it: both are counted below).
+  HybridModel z = m;
+  size_t zeroed = 0;
+  for (size_t r = 0; r < cm->anchor_count; ++r) {
+    const size_t s = st.source_rows[r];
+    const float step = half_to_float(cm->offset_scale[r]);
+    for (size_t j = 0; j < K; ++j) {
+      bool all_zero = true, within = true;
+      for (size_t l = 0; l < 3; ++l) {
+        const size_t i = 3 * j + l;
+        all_zero &= cm->offsets[3 * K * r + i] == 0;
+        within &= std::fabs(d.offsets[3 * K * r + i] - m.offsets[3 * K * s + i]) <= 0.5f * step * 1.0001f + 1e-7f;
+      }
+      if (!within) {
+        REQUIRE(all_zero);  // only a dropped offset may be off by more than half a step: never clipped
+        for (size_t l = 0; l < 3; ++l) z.offsets[3 * K * s + 3 * j + l] = 0.0f;
+        ++zeroed;
+      }
+    }
+  }
+  CHECK(st.offsets_dropped > 0);
+  CHECK(zeroed > 0);  // the render comparison below tests something
+  CHECK(zeroed <= st.offsets_dropped);
+  // Those Gaussians are never drawn in the calibration views: the renders are bit-identical.
+  ModelRenderer a, b;
+  REQUIRE(a.init(m, 64, 48, nullptr).ok());
+  REQUIRE(b.init(z, 64, 48, nullptr).ok());
+  std::vector<float> ra(64 * 48 * 3), rb(64 * 48 * 3);
+  for (const Camera& c : cams) {
+    REQUIRE(a.render(m, c, ra.data()).ok());
+    REQUIRE(b.render(z, c, rb.data()).ok());
+    REQUIRE(ra == rb);
   }
 }
 
@@ -256,6 +316,31 @@ TEST_CASE("compact: the file round-trips and load_model reads it as the dequanti
   }
 }
 
+TEST_CASE("compact: version 1 files are still read, and rewritten as the current version without loss") {
+  // A fuzz corpus seed: a version 1 file written by hbgs compact, after the harness's first byte.
+  Expected<std::vector<uint8_t>> seed = platform::read_file(std::string(GS_SOURCE_DIR) + "/fuzz/corpus/compact/tiny_v1.hbgc");
+  REQUIRE_MESSAGE(seed.ok(), seed.status().to_string());
+  REQUIRE(seed->size() > 21);
+  const std::vector<uint8_t> v1(seed->begin() + 1, seed->end());
+  REQUIRE(v1[8] == 1);  // the format version, little-endian
+  Expected<CompactModel> old = deserialize_compact(v1.data(), v1.size(), "v1.hbgc");
+  REQUIRE_MESSAGE(old.ok(), old.status().to_string());
+  CHECK(old->log_scale_step == 0.0f);  // fp16 log-scales
+  CHECK(old->image_levels == 255);
+  for (const QuantMlp& q : old->mlps) CHECK(q.w1_fine.empty());
+  const std::vector<uint8_t> v2 = serialize_compact(*old);
+  REQUIRE(v2[8] == kCompactFileVersion);
+  Expected<CompactModel> back = deserialize_compact(v2.data(), v2.size(), "v2.hbgc");
+  REQUIRE_MESSAGE(back.ok(), back.status().to_string());
+  const HybridModel a = dequantize(*old), b = dequantize(*back);
+  CHECK(a.positions == b.positions);
+  CHECK(a.offsets == b.offsets);
+  CHECK(a.log_scales == b.log_scales);
+  CHECK(a.features == b.features);
+  CHECK(a.image_raw == b.image_raw);
+  for (int id = 0; id < kMlpCount; ++id) CHECK(a.mlps[id].params == b.mlps[id].params);
+}
+
 TEST_CASE("compact: corrupt, truncated, foreign and future files are refused with a message") {
   const HybridModel m = random_model(ImageFeatureMode::kPaper, 31);
   Expected<CompactModel> cm = compact_from_model(m, ring_cameras(4), CompactOptions{}, nullptr);
@@ -276,12 +361,29 @@ TEST_CASE("compact: corrupt, truncated, foreign and future files are refused wit
   }
   // A later format version (checksum made valid): refused by version, with the remedy.
   std::vector<uint8_t> future = good;
-  future[8] = 2;
+  future[8] = uint8_t(kCompactFileVersion + 1);
   const uint64_t sum = fnv1a64(future.data(), future.size() - 8);
   std::memcpy(future.data() + future.size() - 8, &sum, 8);  // little-endian hosts (all hbgs targets)
   Expected<CompactModel> r = deserialize_compact(future.data(), future.size(), "future.hbgc");
   REQUIRE_FALSE(r.ok());
-  CHECK(r.status().message().find("version 2") != std::string::npos);
+  CHECK(r.status().message().find("version " + std::to_string(kCompactFileVersion + 1)) != std::string::npos);
+  // Version 2's own fields, out of range (the writer writes what it is given; the checksum is valid).
+  auto refused = [&](const char* what, auto&& mutate, const char* expect) {
+    CAPTURE(what);
+    CompactModel bad = *cm;
+    mutate(bad);
+    const std::vector<uint8_t> bytes = serialize_compact(bad);
+    Expected<CompactModel> e = deserialize_compact(bytes.data(), bytes.size(), "bad.hbgc");
+    REQUIRE_FALSE(e.ok());
+    CHECK(e.status().message().find(expect) != std::string::npos);
+  };
+  refused("levels 0", [](CompactModel& b) { b.image_levels = 0; }, "image feature levels");
+  refused("levels 256", [](CompactModel& b) { b.image_levels = 256; }, "image feature levels");
+  refused("value above the levels", [](CompactModel& b) { b.image_levels = 3; b.image_raw[5] = 4; }, "exceeds the 3 levels");
+  refused("negative step", [](CompactModel& b) { b.log_scale_step = -0.5f; }, "log-scale step");
+  refused("NaN step", [](CompactModel& b) { b.log_scale_step = std::numeric_limits<float>::quiet_NaN(); }, "log-scale step");
+  refused("grid overflow", [](CompactModel& b) { b.log_scale_step = 1e35f; }, "log-scale grid");
+  refused("remainder -128", [](CompactModel& b) { b.mlps[kMlpColor].w2_fine[3] = -128; }, "remainder");
   // A float model file is not a compact one, and the other way round.
   const std::vector<uint8_t> float_bytes = serialize_model(m);
   CHECK_FALSE(is_compact_file(float_bytes.data(), float_bytes.size()));

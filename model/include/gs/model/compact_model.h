@@ -4,15 +4,20 @@
 // calibrated on the training views that the int8 MLP kernels need. load_model() (hybrid_model.h)
 // reads either file kind by its magic, so every float path can use a compact file.
 //
-// Quantisation (docs/MODEL.md "Compact model file"):
+// Quantisation (docs/MODEL.md "The compact model file"; rows in Morton order of their voxel cell):
 //   positions   q = round((p - origin) / step), step = voxel_size / 2^residual_bits, u24 per axis
 //               (the integer voxel coordinate is q >> residual_bits, the residual its low bits)
-//   offsets     int8, symmetric, one fp16 scale per anchor (per-channel scales cost 0.036 dB on the
-//               built-in scene: a few large offsets set every anchor's step)
-//   log-scales  fp16
-//   features    int8, symmetric, one scale per feature channel
-//   image_raw   uint8, affine per channel (the valid flag is exact; invalid rows stay all zero)
-//   MLPs        int8 weights with one float scale per output channel (rows of W1 and W2), float biases
+//   offsets     int8, symmetric, one fp16 step per anchor (per-channel scales cost 0.036 dB on the
+//               built-in scene: a few large offsets set every anchor's step), measured from the
+//               training views' sensitivity to the anchor; 0 for a Gaussian no view keeps
+//   log-scales  a uniform grid per channel, log_scale_lo[c] + q log_scale_step, q uint16
+//               (version 1 files: fp16)
+//   features    int8, symmetric, one step per feature channel, by its first-layer weight
+//   image_raw   uint8, affine per channel in image_levels steps (the valid flag is exact; invalid
+//               rows stay all zero)
+//   MLPs        int8 weights with one float scale per output channel (rows of W1 and W2), float
+//               biases; version 2 adds each weight's rounding remainder in 1/254 of its step (the
+//               float path reads both, the int8 decoder the int8 weights alone)
 #pragma once
 
 #include <cstddef>
@@ -28,7 +33,7 @@ namespace gs::platform { class ThreadPool; }
 
 namespace gs::model {
 
-constexpr uint32_t kCompactFileVersion = 1;
+constexpr uint32_t kCompactFileVersion = 2;  // version 1 files are still read
 constexpr char kCompactMagic[8] = {'H', 'B', 'G', 'S', 'C', 'M', 'P', 'T'};
 
 // Calibrated activation ranges of one MLP over the visible anchors of every calibration view (the
@@ -53,6 +58,10 @@ struct QuantMlp {
   std::vector<int8_t> w2;       // [O, H]
   std::vector<float> w2_scale;  // [O]
   std::vector<float> b2;        // [O]
+  // Empty, or the rounding remainder of every weight in 1/254 of its row's step:
+  // W = (w + fine / 254) scale (|fine| <= 127). The int8 decoder ignores them.
+  std::vector<int8_t> w1_fine;  // [H, I]
+  std::vector<int8_t> w2_fine;  // [O, H]
   ActivationRanges ranges;
 };
 
@@ -67,10 +76,13 @@ struct CompactModel {
   std::vector<uint32_t> pos_q;    // [M, 3], each < 2^24
   std::vector<int8_t> offsets;    // [M, k, 3]
   std::vector<uint16_t> offset_scale;  // [M] fp16: one scale per anchor over its 3k offsets
-  std::vector<uint16_t> log_scales; // [M, 6] fp16 bits
+  std::vector<uint16_t> log_scales; // [M, 6]: grid indices, or fp16 bits when log_scale_step is 0
+  float log_scale_step = 0.0f;      // > 0: log-scale = log_scale_lo[c] + q step; 0: fp16 (version 1)
+  float log_scale_lo[6] = {};
   std::vector<int8_t> features;     // [M, F]
   std::vector<float> feature_scale; // [F]
-  std::vector<uint8_t> image_raw;   // [M, 13] (mode paper)
+  std::vector<uint8_t> image_raw;   // [M, 13] (mode paper), 0..image_levels
+  int image_levels = 255;           // 1..255: value = lo + q (hi - lo) / image_levels
   float image_lo[kImageRawDim] = {}, image_hi[kImageRawDim] = {};
   QuantMlp mlps[kMlpCount];         // kMlpImage only in mode paper
 };
@@ -78,12 +90,30 @@ struct CompactModel {
 struct CompactOptions {
   bool prune = true;       // drop anchors none of whose Gaussians is kept (opacity > 0) in any view
   int residual_bits = 8;   // position sub-voxel bits
+  // Quantisation steps (defaults measured in docs/MODEL.md "The compact model file"): the largest
+  // |value| of an anchor's offsets / of a feature channel is this many steps (1..127), or with
+  // weighting the steps give the rendered error that would have; image features span
+  // image_levels steps (1..255); log-scales are on a grid of log_scale_step (natural log; 0: fp16).
+  int offset_levels = 80;
+  int feature_levels = 80;
+  int image_levels = 15;
+  float log_scale_step = 0.02f;
+  bool mlp_fine = true;    // store the MLP weights' rounding remainders (float path precision)
+  // Store 0 for the offset of every neural Gaussian no view keeps (opacity <= 0 in all of them).
+  bool prune_offsets = true;
+  // Feature steps per channel by the channel's weight in the decoders' first layers.
+  bool weighted_features = true;
+  // Offset steps per anchor by the measured sensitivity of the training views to its offsets
+  // (a render and a backward per view).
+  bool weighted_offsets = true;
 };
 
 // What compact_from_model did.
 struct CompactStats {
   size_t anchors_in = 0, anchors_out = 0, never_visible = 0;
   size_t views = 0;
+  size_t offsets_dropped = 0;
+  size_t low_contribution = 0;  // anchors pruned for adding less than min_contribution to every view  // neural Gaussians (of the kept anchors) whose offset was stored as 0
   std::vector<size_t> source_rows;  // [anchors_out]: row r of the compact model is this float row
 };
 
@@ -103,7 +133,23 @@ float half_to_float(uint16_t h);
 // raw MLP blocks, FNV-1a 64 trailer (verified before any array is sized). Every count is checked
 // against the configuration and the bytes present; errors name the file, the field and what was
 // expected.
-std::vector<uint8_t> serialize_compact(const CompactModel& model);
+// One part of a written file (what bench_compact and the docs' byte table report): group (e.g.
+// "features"), coded bytes (tables and payload, or raw bytes), symbols coded, and the order-0
+// entropy of those symbols in bytes (0 for raw parts).
+struct CompactSection {
+  std::string group;
+  size_t bytes = 0, symbols = 0;
+  double entropy_bytes = 0;
+};
+// The byte streams the file entropy-codes, in file order (group names as in CompactSection), each
+// with one symbol per anchor: what serialize_compact codes and bench_entropy measures.
+struct CompactStream {
+  std::string group;
+  std::vector<uint8_t> symbols;
+};
+std::vector<CompactStream> compact_streams(const CompactModel& model);
+// sections (optional): appended in file order, one per stream or raw block.
+std::vector<uint8_t> serialize_compact(const CompactModel& model, std::vector<CompactSection>* sections = nullptr);
 Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, const std::string& source);
 Status save_compact(const CompactModel& model, const std::string& path);  // atomic
 Expected<CompactModel> load_compact(const std::string& path);
