@@ -253,13 +253,16 @@ constexpr size_t kReplannedIsectsPerGaussian = 3;
 // render through FloatBackend::render_params, which re-plans with headroom when a view needs more,
 // plan for what views use (training snowmiku_plush: at most 1.5 per row x k); callers that cannot
 // re-plan keep 8), the float
-// backend and a step workspace whose image buffers are ws_width x ws_height. Returns the renderer's
-// capacity (for the byte count).
+// backend and a step workspace whose image buffers are ws_width x ws_height, its visible-anchor and
+// kept-Gaussian buffers planned for visible_rows and gaussians (0: rows and rows k; a view that
+// needs more grows them, StepWorkspace::ensure_visible). Returns the renderer's capacity (for the
+// byte count).
 inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, size_t rows, int max_width, int max_height,
                                                     int ws_width, int ws_height, platform::ThreadPool* pool,
                                                     const simd::KernelTable* kernels, Renderer* renderer,
                                                     FloatBackend* backend, StepWorkspace<float>* ws,
-                                                    bool training = true, size_t isects_per_gaussian = 8) {
+                                                    bool training = true, size_t isects_per_gaussian = 8,
+                                                    size_t visible_rows = 0, size_t gaussians = 0) {
   const size_t K = size_t(model.config.k);
   RenderCapacity rc;
   rc.max_gaussians = rows * K;
@@ -272,7 +275,7 @@ inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, si
   for (const Mlp& m : model.mlps) max_params = std::max(max_params, m.params.size());
   backend->init(renderer, kernels, pool, max_params, max_width, max_height);
   const ModelParamsT<float> p = model_params(model);
-  ws->reserve(rows, model.config.k, p.shapes, p.image_feature_dim, ws_width, ws_height, training);
+  ws->reserve(rows, model.config.k, p.shapes, p.image_feature_dim, ws_width, ws_height, training, visible_rows, gaussians);
   return rc;
 }
 
