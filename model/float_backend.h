@@ -135,11 +135,7 @@ class FloatBackend {
   void set_int8_decoder(const QuantDecoder* qd, const float* const keys[kMlpCount], size_t rows) {
     int8_ = qd;
     for (int id = 0; id < kMlpCount; ++id) int8_keys_[id] = keys ? keys[id] : nullptr;
-    if (qd) {
-      q_x_.assign(rows * size_t(qd->max_in), 0);
-      q_h_.assign(rows * size_t(qd->max_hidden), 0);
-      q_y_.assign(rows * size_t(qd->max_out), 0);
-    }
+    if (qd) plan_int8_rows(rows);
   }
   void set_int8_keys(const float* const keys[kMlpCount]) {
     for (int id = 0; id < kMlpCount; ++id) int8_keys_[id] = keys[id];
@@ -203,7 +199,16 @@ class FloatBackend {
       body(0, n, 0);
   }
 
+  void plan_int8_rows(size_t rows) {
+    q_rows_ = rows;
+    q_x_.assign(rows * size_t(int8_->max_in), 0);
+    q_h_.assign(rows * size_t(int8_->max_hidden), 0);
+    q_y_.assign(rows * size_t(int8_->max_out), 0);
+  }
+
   void mlp_fwd_int8(const QuantMlpKernel& k, int32_t batch, const float* x, float* y) {
+    // A view with more visible anchors than planned (the workspace grew too): half again of headroom.
+    if (size_t(batch) > q_rows_) plan_int8_rows(size_t(batch) + size_t(batch) / 2);
     const int chunks = chunk_count(batch);
     const simd::QMlpParams qp = k.params();
     const size_t I = size_t(k.in), H = size_t(k.hidden), O = size_t(k.out);
@@ -240,6 +245,7 @@ class FloatBackend {
   const QuantDecoder* int8_ = nullptr;
   const float* int8_keys_[kMlpCount] = {};
   std::vector<int16_t> q_x_, q_h_, q_y_;
+  size_t q_rows_ = 0;  // rows the int8 scratch holds
 };
 
 // Tile pairs planned per Gaussian of capacity where the renderer is used through
