@@ -2,6 +2,8 @@
 // Heap settings (gs/platform/memory.h): a fixed mmap threshold on glibc.
 #include "gs/platform/memory.h"
 
+#include <cstdlib>  // defines __GLIBC__ on glibc
+
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
