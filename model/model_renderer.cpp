@@ -68,7 +68,8 @@ Status ModelRenderer::init(const HybridModel& model, int max_width, int max_heig
   const simd::KernelTable* kt = kernels ? kernels : &simd::best_kernel_table();
   const size_t cap = std::max<size_t>(model.anchor_count, 1);
   // With the views to render: their most visible anchors (a dry run of the visibility test; exact
-  // for this model), k kept Gaussians each at most.
+  // for this model). The kept Gaussians are planned by the first views that decode (a few grow the
+  // plan by half again; a snowmiku view keeps about 40 % of its k per visible anchor).
   size_t visible = 0;
   if (views && !views->empty()) {
     const AnchorParams<float> a = detail::model_params(model).anchors;
@@ -78,7 +79,7 @@ Status ModelRenderer::init(const HybridModel& model, int max_width, int max_heig
   Expected<RenderCapacity> rc = detail::plan_model_pipeline(model, cap, max_width, max_height, max_width, max_height, pool,
                                                             kt, &impl_->renderer, &impl_->backend, &impl_->ws,
                                                             /*training=*/false, detail::kReplannedIsectsPerGaussian, visible,
-                                                            visible * size_t(model.config.k));
+                                                            visible > 0 ? 1 : 0);
   if (!rc.ok()) return rc.status();
   impl_->capacity = cap;
   impl_->backend.fixed_point_raster = impl_->options.fixed_point_raster;

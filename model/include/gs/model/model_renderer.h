@@ -31,7 +31,8 @@ struct ModelRenderOptions {
 };
 
 // Renders views of a trained model (no gradients): the step graph's forward in float. Allocates at
-// init() only.
+// init(), and when a view decodes more anchors or Gaussians than planned (then the plan grows by
+// half again of what that view needs).
 class ModelRenderer {
  public:
   ModelRenderer();

@@ -102,8 +102,9 @@ struct StepWorkspace : NeuralGaussianBuffers<T> {
   StageTimes* stage_times = nullptr;
 
   // gradients = false: the forward buffers only (rendering and registration decode but never
-  // differentiate the decoder), about 40 % of the bytes. visible / gaussians: the plan for the
-  // visible anchors and kept Gaussians of a view (0: every row, cap and cap k).
+  // differentiate the decoder), about a third of the bytes. visible / gaussians: the plan for the
+  // visible anchors and kept Gaussians of a view (0: every row, cap and cap k; a small plan grows
+  // on the first view that needs more).
   void reserve(size_t cap, int k, const simd::MlpShape shapes[kMlpCount], int G, int width, int height,
                bool gradients = true, size_t visible = 0, size_t gaussians = 0) {
     capacity = cap;
@@ -130,12 +131,17 @@ struct StepWorkspace : NeuralGaussianBuffers<T> {
     X.assign(V * D, T(0));
     v_X.assign(gV * D, T(0));
     v_x_tmp.assign(gV * D, T(0));
+    // Without gradients no MLP's hidden layer is read after its forward: the three share hidden[0].
+    size_t shared_hidden = 0;
+    for (int m = 0; m < 3; ++m) shared_hidden = std::max(shared_hidden, size_t(shapes_[m].hidden));
     for (int m = 0; m < 3; ++m) {
-      hidden[m].assign(V * size_t(shapes_[m].hidden), T(0));
+      hidden[m].assign(gradients_ ? V * size_t(shapes_[m].hidden) : m == 0 ? V * shared_hidden : 0, T(0));
       y[m].assign(V * size_t(shapes_[m].out), T(0));
       v_y[m].assign(gV * size_t(shapes_[m].out), T(0));
     }
   }
+  // The hidden-layer buffer decoder MLP m (opacity, cov, colour) writes in its forward.
+  T* hidden_of(int m) { return hidden[gradients_ ? m : 0].data(); }
   // The per-kept-Gaussian buffers for N Gaussians (contents are not kept).
   void plan_gaussians(size_t N) {
     gaussian_capacity = N;
@@ -257,7 +263,7 @@ size_t decode_view(Backend& be, const ModelParamsT<T>& p, const Camera& cam, Ste
     build_decoder_input_range(a, rows, b, e, g, G, centre, ws.X.data());
   });
   clock.lap(kStageDecoderInput);
-  for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden[m].data(), ws.y[m].data());
+  for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden_of(m), ws.y[m].data());
   clock.lap(kStageDecoderMlpFwd);
   *visible = V;
 
