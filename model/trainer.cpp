@@ -362,6 +362,10 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
 
 Status Trainer::step(IterationStats* stats) {
   Impl& d = *impl_;
+  if (d.step_memory_released) {
+    GS_RETURN_IF_ERROR(d.plan(d.opt));
+    d.step_memory_released = false;
+  }
   const double t0 = platform::now_seconds();
   // The stage timers are lent to the renderer and the workspace for this step only (render() and
   // the evaluations between steps stay out of the profile).
@@ -552,6 +556,15 @@ const HybridModel& Trainer::model() const { return impl_->model; }
 const TrainOptions& Trainer::options() const { return impl_->opt; }
 uint64_t Trainer::planned_bytes() const { return impl_->planned_bytes; }
 int Trainer::workspace_replans() const { return impl_->ws.replans; }
+
+void Trainer::release_step_memory() {
+  Impl& d = *impl_;
+  d.ws.release_gradients();
+  std::vector<detail::CellKey>().swap(d.existing_cells);
+  std::vector<std::pair<detail::CellKey, uint32_t>>().swap(d.cand);
+  std::vector<std::pair<float, uint32_t>>().swap(d.cell_scores);
+  d.step_memory_released = true;
+}
 
 bool Trainer::can_render(int width, int height) const {
   return width >= 1 && height >= 1 && size_t(width) * size_t(height) * 3 <= impl_->ws.rgb.size() &&

@@ -84,6 +84,7 @@ struct Trainer::Impl {
   int growths = 0;             // times the rows grew (each one allocation, at a densification step)
   size_t last_visible = 0;    // visible anchors of the last step
   size_t last_gaussians = 0;  // kept neural Gaussians of the last step
+  bool step_memory_released = false;  // release_step_memory() ran: step() plans again first
   size_t most_gaussians = 0;  // the most kept neural Gaussians of a step so far (plans the workspace)
   std::vector<std::pair<float, uint32_t>> cell_scores;  // [cap k] (-mean gradient, first candidate) per new cell
   // The run's schedule as it goes (Trainer::retarget): the learning-rate progress fraction reached

@@ -140,6 +140,13 @@ struct StepWorkspace : NeuralGaussianBuffers<T> {
       v_y[m].assign(gV * size_t(shapes_[m].out), T(0));
     }
   }
+  // Frees the gradient buffers (a training run's last evaluation renders without them); reserve()
+  // must run again before the next backward step.
+  void release_gradients() {
+    for (std::vector<T>* v : {&v_g, &v_X, &v_x_tmp, &v_y[0], &v_y[1], &v_y[2], &v_means, &v_log_scales, &v_quats,
+                              &v_opacities, &v_colors, &v_means2d, &v_ls_volume, &v_rgb})
+      std::vector<T>().swap(*v);
+  }
   // The hidden-layer buffer decoder MLP m (opacity, cov, colour) writes in its forward.
   T* hidden_of(int m) { return hidden[gradients_ ? m : 0].data(); }
   // The per-kept-Gaussian buffers for N Gaussians (contents are not kept).
