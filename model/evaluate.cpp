@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <type_traits>
 
 #include "gs/io/composite.h"
 #include "gs/io/image.h"
@@ -168,7 +169,13 @@ Expected<EvalResult> evaluate_scene(const Scene& scene, const std::vector<const 
       views, options,
       [&](int w, int h) {
         GS_RETURN_IF_ERROR(renderer.set_options(options.render));
-        return renderer.init(scene, w, h, pool);
+        if constexpr (std::is_same_v<Scene, HybridModel>) {
+          std::vector<Camera> cameras;  // the decoder workspace is planned for what these views see
+          for (const io::DatasetView* v : views) cameras.push_back(v->camera);
+          return renderer.init(scene, w, h, pool, nullptr, &cameras);
+        } else {
+          return renderer.init(scene, w, h, pool);
+        }
       },
       [&](const Camera& cam, float* rgb, size_t* n, float* alpha) { return renderer.render(scene, cam, rgb, n, alpha); });
 }

@@ -135,11 +135,7 @@ class FloatBackend {
   void set_int8_decoder(const QuantDecoder* qd, const float* const keys[kMlpCount], size_t rows) {
     int8_ = qd;
     for (int id = 0; id < kMlpCount; ++id) int8_keys_[id] = keys ? keys[id] : nullptr;
-    if (qd) {
-      q_x_.assign(rows * size_t(qd->max_in), 0);
-      q_h_.assign(rows * size_t(qd->max_hidden), 0);
-      q_y_.assign(rows * size_t(qd->max_out), 0);
-    }
+    if (qd) plan_int8_rows(rows);
   }
   void set_int8_keys(const float* const keys[kMlpCount]) {
     for (int id = 0; id < kMlpCount; ++id) int8_keys_[id] = keys[id];
@@ -203,7 +199,16 @@ class FloatBackend {
       body(0, n, 0);
   }
 
+  void plan_int8_rows(size_t rows) {
+    q_rows_ = rows;
+    q_x_.assign(rows * size_t(int8_->max_in), 0);
+    q_h_.assign(rows * size_t(int8_->max_hidden), 0);
+    q_y_.assign(rows * size_t(int8_->max_out), 0);
+  }
+
   void mlp_fwd_int8(const QuantMlpKernel& k, int32_t batch, const float* x, float* y) {
+    // A view with more visible anchors than planned (the workspace grew too): half again of headroom.
+    if (size_t(batch) > q_rows_) plan_int8_rows(size_t(batch) + size_t(batch) / 2);
     const int chunks = chunk_count(batch);
     const simd::QMlpParams qp = k.params();
     const size_t I = size_t(k.in), H = size_t(k.hidden), O = size_t(k.out);
@@ -240,6 +245,7 @@ class FloatBackend {
   const QuantDecoder* int8_ = nullptr;
   const float* int8_keys_[kMlpCount] = {};
   std::vector<int16_t> q_x_, q_h_, q_y_;
+  size_t q_rows_ = 0;  // rows the int8 scratch holds
 };
 
 // Tile pairs planned per Gaussian of capacity where the renderer is used through
@@ -253,13 +259,16 @@ constexpr size_t kReplannedIsectsPerGaussian = 3;
 // render through FloatBackend::render_params, which re-plans with headroom when a view needs more,
 // plan for what views use (training snowmiku_plush: at most 1.5 per row x k); callers that cannot
 // re-plan keep 8), the float
-// backend and a step workspace whose image buffers are ws_width x ws_height. Returns the renderer's
-// capacity (for the byte count).
+// backend and a step workspace whose image buffers are ws_width x ws_height, its visible-anchor and
+// kept-Gaussian buffers planned for visible_rows and gaussians (0: rows and rows k; a view that
+// needs more grows them, StepWorkspace::ensure_visible). Returns the renderer's capacity (for the
+// byte count).
 inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, size_t rows, int max_width, int max_height,
                                                     int ws_width, int ws_height, platform::ThreadPool* pool,
                                                     const simd::KernelTable* kernels, Renderer* renderer,
                                                     FloatBackend* backend, StepWorkspace<float>* ws,
-                                                    bool training = true, size_t isects_per_gaussian = 8) {
+                                                    bool training = true, size_t isects_per_gaussian = 8,
+                                                    size_t visible_rows = 0, size_t gaussians = 0) {
   const size_t K = size_t(model.config.k);
   RenderCapacity rc;
   rc.max_gaussians = rows * K;
@@ -272,7 +281,7 @@ inline Expected<RenderCapacity> plan_model_pipeline(const HybridModel& model, si
   for (const Mlp& m : model.mlps) max_params = std::max(max_params, m.params.size());
   backend->init(renderer, kernels, pool, max_params, max_width, max_height);
   const ModelParamsT<float> p = model_params(model);
-  ws->reserve(rows, model.config.k, p.shapes, p.image_feature_dim, ws_width, ws_height, training);
+  ws->reserve(rows, model.config.k, p.shapes, p.image_feature_dim, ws_width, ws_height, training, visible_rows, gaussians);
   return rc;
 }
 

@@ -138,8 +138,25 @@ Expected<HybridModel> create_model(const ModelConfig& config, const float* xyz, 
 
 // ---- file format ----------------------------------------------------------------------------
 
-std::vector<uint8_t> serialize_model(const HybridModel& m) {
+size_t serialized_model_size(const HybridModel& m) {
+  const ModelConfig& c = m.config;
+  detail::ByteWriter header;
+  detail::write_model_header(&header, c, m.voxel_size, m.scene_extent);
+  const size_t M = m.anchor_count;
+  size_t floats = M * (3 + size_t(c.k) * 3 + 6 + size_t(c.feature_dim) + (has_image_mlp(c) ? size_t(kImageRawDim) : 0));
+  size_t mlps = 0;
+  for (int id = 0; id < kMlpCount; ++id) {
+    if (id == kMlpImage && !has_image_mlp(c)) continue;
+    ++mlps;
+    floats += m.mlps[id].params.size();
+  }
+  return 8 + 4 + header.bytes.size() + 8 + 4 * floats + 16 * mlps + 8;
+}
+
+void append_serialized_model(const HybridModel& m, std::vector<uint8_t>* out) {
   detail::ByteWriter w;
+  w.bytes.swap(*out);  // write after what *out holds, in its storage
+  const size_t start = w.bytes.size();
   const ModelConfig& c = m.config;
   w.raw(kModelMagic, 8);
   w.u32(kModelFileVersion);
@@ -160,8 +177,15 @@ std::vector<uint8_t> serialize_model(const HybridModel& m) {
     w.i32(int32_t(mlp.shape.act2));
     w.floats(mlp.params.data(), mlp.params.size());
   }
-  w.u64(detail::fnv1a64(w.bytes.data(), w.bytes.size()));
-  return std::move(w.bytes);
+  w.u64(detail::fnv1a64(w.bytes.data() + start, w.bytes.size() - start));
+  w.bytes.swap(*out);
+}
+
+std::vector<uint8_t> serialize_model(const HybridModel& m) {
+  std::vector<uint8_t> bytes;
+  bytes.reserve(serialized_model_size(m));
+  append_serialized_model(m, &bytes);
+  return bytes;
 }
 
 Expected<HybridModel> deserialize_model(const uint8_t* data, size_t size, const std::string& source, size_t* consumed) {

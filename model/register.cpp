@@ -621,8 +621,11 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const model::HybridModel&
   d.setup(options, pool, kernels, max_width, max_height, model.scene_extent);
   const size_t cap = std::max(model.anchor_count, plan_anchor_rows);
   d.planned_rows = cap;
+  // The kept Gaussians are planned by the first decode (half again of what it keeps; a pose that
+  // keeps more grows the plan), not k per anchor row: a view keeps far fewer.
   Expected<RenderCapacity> rc = model::detail::plan_model_pipeline(model, cap, max_width, max_height, 1, 1, pool, d.kernels,
-                                                            &d.renderer, &d.backend, &d.ws, /*training=*/false);
+                                                            &d.renderer, &d.backend, &d.ws, /*training=*/false,
+                                                            /*isects_per_gaussian=*/8, /*visible_rows=*/0, /*gaussians=*/1);
   if (!rc.ok()) return rc.status();
   d.allocate_images();
   d.bytes = Renderer::plan_bytes(*rc) + d.image_bytes() +

@@ -78,11 +78,24 @@ bool Trainer::Impl::gradients_finite(size_t M, const double v_pose[6]) const {
   return true;
 }
 
+size_t Trainer::Impl::most_visible_anchors() const {
+  const AnchorParams<float> a = params().anchors;
+  size_t most = 0;
+  for (const Camera& cam : view_cameras) most = std::max(most, select_visible_anchors(cam, a, static_cast<uint32_t*>(nullptr)));
+  return most;
+}
+
 Status Trainer::Impl::plan(const TrainOptions& options) {
   const size_t c = cap(), K = size_t(k());
+  // The decoder workspace follows what the views decode: the most anchors a training view sees
+  // now (a dry run of the visibility test) and a quarter more for the anchors grown into these
+  // rows; the kept Gaussians half again the most a step has decoded (before the first step: k per
+  // visible anchor). A step that needs more grows them (StepWorkspace::ensure_visible).
+  const size_t visible = std::min(c, std::max<size_t>(1, most_visible_anchors() * 5 / 4));
+  const size_t gaussians = most_gaussians > 0 ? std::min(visible * K, most_gaussians * 3 / 2) : visible * K;
   Expected<RenderCapacity> rc = detail::plan_model_pipeline(model, c, plan_w, plan_h, plan_w, plan_h, pool, kernels,
                                                             &renderer, &backend, &ws, /*training=*/true,
-                                                            detail::kReplannedIsectsPerGaussian);
+                                                            detail::kReplannedIsectsPerGaussian, visible, gaussians);
   if (!rc.ok()) return rc.status();
   opacity_accum.resize(c, 0.0f);
   anchor_seen.resize(c, 0);
@@ -349,6 +362,10 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
 
 Status Trainer::step(IterationStats* stats) {
   Impl& d = *impl_;
+  if (d.step_memory_released) {
+    GS_RETURN_IF_ERROR(d.plan(d.opt));
+    d.step_memory_released = false;
+  }
   const double t0 = platform::now_seconds();
   // The stage timers are lent to the renderer and the workspace for this step only (render() and
   // the evaluations between steps stay out of the profile).
@@ -391,6 +408,7 @@ Status Trainer::step(IterationStats* stats) {
   GS_RETURN_IF_ERROR(step_forward_backward(d.backend, p, cam, d.target.data(), d.opt.step, d.ws, &grads, &res));
   d.last_visible = res.visible_anchors;
   d.last_gaussians = res.gaussians;
+  d.most_gaussians = std::max(d.most_gaussians, res.gaussians);
   StageClock clock(times);
   if (!d.opt.test_nonfinite_iterations.empty() &&
       std::find(d.opt.test_nonfinite_iterations.begin(), d.opt.test_nonfinite_iterations.end(), it) != d.opt.test_nonfinite_iterations.end())
@@ -537,6 +555,16 @@ int Trainer::downscale_at(int iteration) const { return impl_->downscale_at(iter
 const HybridModel& Trainer::model() const { return impl_->model; }
 const TrainOptions& Trainer::options() const { return impl_->opt; }
 uint64_t Trainer::planned_bytes() const { return impl_->planned_bytes; }
+int Trainer::workspace_replans() const { return impl_->ws.replans; }
+
+void Trainer::release_step_memory() {
+  Impl& d = *impl_;
+  d.ws.release_gradients();
+  std::vector<detail::CellKey>().swap(d.existing_cells);
+  std::vector<std::pair<detail::CellKey, uint32_t>>().swap(d.cand);
+  std::vector<std::pair<float, uint32_t>>().swap(d.cell_scores);
+  d.step_memory_released = true;
+}
 
 bool Trainer::can_render(int width, int height) const {
   return width >= 1 && height >= 1 && size_t(width) * size_t(height) * 3 <= impl_->ws.rgb.size() &&

@@ -84,6 +84,8 @@ struct Trainer::Impl {
   int growths = 0;             // times the rows grew (each one allocation, at a densification step)
   size_t last_visible = 0;    // visible anchors of the last step
   size_t last_gaussians = 0;  // kept neural Gaussians of the last step
+  bool step_memory_released = false;  // release_step_memory() ran: step() plans again first
+  size_t most_gaussians = 0;  // the most kept neural Gaussians of a step so far (plans the workspace)
   std::vector<std::pair<float, uint32_t>> cell_scores;  // [cap k] (-mean gradient, first candidate) per new cell
   // The run's schedule as it goes (Trainer::retarget): the learning-rate progress fraction reached
   // (never decreasing), the iteration where coarse to fine ends, and whether retarget was called
@@ -110,6 +112,8 @@ struct Trainer::Impl {
   // registrar, the densification statistics and growth scratch (resize: live rows keep their
   // values), and the byte count. Called at creation and after the rows grow.
   Status plan(const TrainOptions& options);
+  // Dry run of the decoder's visibility test: the most live anchors one training view sees.
+  size_t most_visible_anchors() const;
   // Memory follows the scene: the rows (model, Adam moments, gradients, statistics, pipeline) grow
   // to hold `rows` anchors, by at least half again, never past the anchor budget. Values of the
   // live rows are kept; results do not depend on the capacity.

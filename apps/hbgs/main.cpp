@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 
 #include "common.h"
+#include "gs/platform/memory.h"
 #include "gs/simd/kernel_table.h"
 
 #ifndef HBGS_VERSION
@@ -32,6 +33,7 @@ std::string version_text() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  gs::platform::release_large_blocks_promptly();  // resident memory follows what is held (docs/MODEL.md)
   CLI::App app("hbgs: 3D Gaussian splatting on the CPU", "hbgs");
   app.set_version_flag("--version", version_text, "Print the version and the kernel ISA, then exit");
   app.require_subcommand(1);

@@ -492,6 +492,9 @@ Status TrainRun::after_step(int it) {
   const bool quick = !full && a_.eval_every > 0 && have_test_ && it % a_.eval_every == 0;
   const bool save = full || (a_.checkpoint_every > 0 && it % a_.checkpoint_every == 0);
   Status out_st;
+  // The last step is done: its gradient and growth buffers go before the final evaluation renders
+  // and measures (the training memory peak would otherwise be the sum of both).
+  if (final_) trainer_->release_step_memory();
   if (full) {
     out_st = full_eval(it);
     last_full_ = it;
@@ -513,7 +516,10 @@ Status TrainRun::after_step(int it) {
 Status TrainRun::finish() {
   const int final_it = trainer_->iteration();
   final_ = true;
-  if (last_full_ != final_it) GS_RETURN_IF_ERROR(full_eval(final_it));
+  if (last_full_ != final_it) {
+    trainer_->release_step_memory();
+    GS_RETURN_IF_ERROR(full_eval(final_it));
+  }
   if (a_.optimize_poses)
     GS_RETURN_IF_ERROR(write_posed_model(a_.dataset, d_->train_names, poses_of(trainer_->cameras()),
                                          (fs::path(a_.out) / "refined_poses").string()));

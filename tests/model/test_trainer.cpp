@@ -179,6 +179,31 @@ TEST_CASE("trainer: step allocates nothing after warm-up including densification
   CHECK(times.iterations == 40);
 }
 
+TEST_CASE("trainer: release_step_memory between steps changes no result") {
+  platform::ThreadPool pool(2);
+  const TrainOptions o = busy_options(30);  // densification and feature refresh run too
+  auto plain = make_trainer(initial_model(config()), o, &pool);
+  auto released = make_trainer(initial_model(config()), o, &pool);
+  IterationStats a, b;
+  const PinholeIntrinsics& in = plain->cameras()[0].intr;
+  std::vector<float> ra(size_t(in.width) * size_t(in.height) * 3), rb(ra.size());
+  const float bg[3] = {0, 0, 0};
+  for (int i = 0; i < 30; ++i) {
+    REQUIRE(plain->step(&a).ok());
+    REQUIRE(released->step(&b).ok());
+    REQUIRE(a.step.loss == b.step.loss);
+    REQUIRE(a.anchors == b.anchors);
+    if (i % 7 == 3) {  // release, render without the step buffers, then step again (re-planned)
+      released->release_step_memory();
+      REQUIRE(plain->render(plain->cameras()[0], bg, ra.data()).ok());
+      REQUIRE(released->render(released->cameras()[0], bg, rb.data()).ok());
+      CHECK(ra == rb);
+    }
+  }
+  CHECK(plain->model().offsets == released->model().offsets);
+  MESSAGE("workspace re-plans over 30 steps: " << plain->workspace_replans());
+}
+
 TEST_CASE("trainer: stage times are filled, sum to the iteration time, change nothing, and stay untouched when off") {
   platform::ThreadPool pool(2);
   const TrainOptions o = busy_options(30);  // statistics, anchor adjustment and feature refresh all run

@@ -21,6 +21,7 @@
 
 #include "gs/platform/clock.h"
 #include "gs/platform/file.h"
+#include "gs/platform/memory.h"
 #include "gs/platform/process.h"
 #include "gs/platform/thread_pool.h"
 #include "support/alloc_counter.h"
@@ -456,4 +457,12 @@ TEST_CASE("run_process reports a missing program and a killed one") {
   r = gs::platform::run_process({"sh", "-c", "kill -9 $$"}, "");
   REQUIRE(r.ok());
   CHECK(r->exit_code == 128 + 9);
+}
+
+TEST_CASE("release_large_blocks_promptly applies on glibc") {
+#if defined(__GLIBC__)
+  CHECK(gs::platform::release_large_blocks_promptly());
+#else
+  CHECK_FALSE(gs::platform::release_large_blocks_promptly());
+#endif
 }

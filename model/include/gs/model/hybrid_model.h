@@ -102,6 +102,10 @@ simd::MlpShape model_mlp_shape(const ModelConfig& config, int id);
 // atomically. load_model refuses other versions, truncated or inconsistent files with a message.
 constexpr uint32_t kModelFileVersion = 1;
 std::vector<uint8_t> serialize_model(const HybridModel& model);
+// The same bytes appended to *out (the trainer's checkpoint embeds them without a second copy), and
+// their count (serialize_model reserves exactly that: no growth doubling of the buffer).
+void append_serialized_model(const HybridModel& model, std::vector<uint8_t>* out);
+size_t serialized_model_size(const HybridModel& model);
 Expected<HybridModel> deserialize_model(const uint8_t* data, size_t size, const std::string& source,
                                         size_t* consumed = nullptr);
 // Refuses (kNumerical, naming the array and anchor) a model holding NaN or infinity in its live rows

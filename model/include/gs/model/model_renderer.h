@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstddef>
+#include <vector>
 
 #include "gs/camera.h"
 #include "gs/gaussians.h"
@@ -30,7 +31,8 @@ struct ModelRenderOptions {
 };
 
 // Renders views of a trained model (no gradients): the step graph's forward in float. Allocates at
-// init() only.
+// init(), and when a view decodes more anchors or Gaussians than planned (then the plan grows by
+// half again of what that view needs).
 class ModelRenderer {
  public:
   ModelRenderer();
@@ -38,9 +40,11 @@ class ModelRenderer {
   // Takes effect from the next render(); preparing the int8 decoder can fail (a compact model
   // without calibrated ranges).
   Status set_options(const ModelRenderOptions& options);
-  // Plans for the model's capacity and images up to max_width x max_height.
+  // Plans for the model's capacity and images up to max_width x max_height. views (optional): the
+  // cameras that will be rendered; the decoder workspace is then planned for the most anchors one of
+  // them sees (a view that sees more later grows it: one allocation).
   Status init(const HybridModel& model, int max_width, int max_height, platform::ThreadPool* pool,
-              const simd::KernelTable* kernels = nullptr);
+              const simd::KernelTable* kernels = nullptr, const std::vector<Camera>* views = nullptr);
   // Plans for plain Gaussians instead (a baked model or a 3DGS scene read from a file): render()
   // with the cloud then draws the Gaussians in view with their SH colours for the camera.
   Status init(const GaussianCloud& cloud, int max_width, int max_height, platform::ThreadPool* pool,

@@ -78,49 +78,103 @@ struct StepResult {
 };
 
 // Buffers of one training or render step. The kept neural Gaussians (ng and its arrays means ...
-// source, [cap k, ...]) come from NeuralGaussianBuffers.
+// source) come from NeuralGaussianBuffers.
+// Memory follows the scene: only `rows` is sized for every anchor row (capacity); the buffers of
+// the visible anchors (raw ... v_y) hold visible_capacity rows and those of the kept Gaussians
+// (ng, v_means ...) gaussian_capacity, which the owner plans from what its views decode (a dry run
+// or the counts seen so far). A view that decodes more grows them (ensure_visible /
+// ensure_gaussians: with half again of headroom, never past capacity and capacity k; counted in
+// replans) before anything is written, so its result is the one a full plan gives.
 template <class T>
 struct StepWorkspace : NeuralGaussianBuffers<T> {
   std::vector<uint32_t> rows;                         // [cap] visible anchor rows
-  std::vector<T> raw, img_hidden, g, v_g;             // [cap, R] [cap, Hi] [cap, G] [cap, G]
-  std::vector<T> X, v_X, v_x_tmp;                     // [cap, D]
+  std::vector<T> raw, img_hidden, g, v_g;             // [V, R] [V, Hi] [V, G] [V, G]
+  std::vector<T> X, v_X, v_x_tmp;                     // [V, D]
   std::vector<T> hidden[3], y[3], v_y[3];             // decoder MLPs: opacity, cov, colour
   std::vector<T> v_means, v_log_scales, v_quats, v_opacities, v_colors, v_means2d, v_ls_volume;
   std::vector<T> rgb, v_rgb;                          // [H, W, 3]
-  size_t capacity = 0;
+  size_t capacity = 0;           // anchor rows
+  size_t visible_capacity = 0;   // visible anchors V the per-anchor buffers hold
+  size_t gaussian_capacity = 0;  // kept Gaussians N the per-Gaussian buffers hold
+  int replans = 0;               // times a view outgrew the plan (each one allocation)
   // Profiling: when set, decode_view and step_forward_backward add each stage's wall time here
   // (gs/stage_times.h; the renderer's stages are the backend's). Null: one branch per stage.
   StageTimes* stage_times = nullptr;
 
   // gradients = false: the forward buffers only (rendering and registration decode but never
-  // differentiate the decoder), about 40 % of the bytes.
+  // differentiate the decoder), about a third of the bytes. visible / gaussians: the plan for the
+  // visible anchors and kept Gaussians of a view (0: every row, cap and cap k; a small plan grows
+  // on the first view that needs more).
   void reserve(size_t cap, int k, const simd::MlpShape shapes[kMlpCount], int G, int width, int height,
-               bool gradients = true) {
+               bool gradients = true, size_t visible = 0, size_t gaussians = 0) {
     capacity = cap;
-    const size_t D = size_t(shapes[kMlpOpacity].in), N = cap * size_t(k), gcap = gradients ? cap : 0, gN = gcap * size_t(k);
+    k_ = k;
+    G_ = G;
+    gradients_ = gradients;
+    for (int m = 0; m < kMlpCount; ++m) shapes_[m] = shapes[m];
     rows.assign(cap, 0);
-    if (G > 0) {
-      raw.assign(cap * size_t(kImageRawDim), T(0));
-      img_hidden.assign(cap * size_t(shapes[kMlpImage].hidden), T(0));
-      g.assign(cap * size_t(G), T(0));
-      v_g.assign(gcap * size_t(G), T(0));
+    plan_visible(visible == 0 ? cap : std::min(visible, cap));
+    plan_gaussians(gaussians == 0 ? cap * size_t(k) : std::min(gaussians, cap * size_t(k)));
+    rgb.assign(size_t(width) * size_t(height) * 3, T(0));
+    v_rgb.assign(gradients ? rgb.size() : 0, T(0));
+  }
+  // The per-visible-anchor buffers for V anchors (contents are not kept).
+  void plan_visible(size_t V) {
+    visible_capacity = V;
+    const size_t D = size_t(shapes_[kMlpOpacity].in), gV = gradients_ ? V : 0;
+    if (G_ > 0) {
+      raw.assign(V * size_t(kImageRawDim), T(0));
+      img_hidden.assign(V * size_t(shapes_[kMlpImage].hidden), T(0));
+      g.assign(V * size_t(G_), T(0));
+      v_g.assign(gV * size_t(G_), T(0));
     }
-    X.assign(cap * D, T(0));
-    v_X.assign(gcap * D, T(0));
-    v_x_tmp.assign(gcap * D, T(0));
+    X.assign(V * D, T(0));
+    v_X.assign(gV * D, T(0));
+    v_x_tmp.assign(gV * D, T(0));
+    // Without gradients no MLP's hidden layer is read after its forward: the three share hidden[0].
+    size_t shared_hidden = 0;
+    for (int m = 0; m < 3; ++m) shared_hidden = std::max(shared_hidden, size_t(shapes_[m].hidden));
     for (int m = 0; m < 3; ++m) {
-      hidden[m].assign(cap * size_t(shapes[m].hidden), T(0));
-      y[m].assign(cap * size_t(shapes[m].out), T(0));
-      v_y[m].assign(gcap * size_t(shapes[m].out), T(0));
+      hidden[m].assign(gradients_ ? V * size_t(shapes_[m].hidden) : m == 0 ? V * shared_hidden : 0, T(0));
+      y[m].assign(V * size_t(shapes_[m].out), T(0));
+      v_y[m].assign(gV * size_t(shapes_[m].out), T(0));
     }
+  }
+  // Frees the gradient buffers (a training run's last evaluation renders without them); reserve()
+  // must run again before the next backward step.
+  void release_gradients() {
+    for (std::vector<T>* v : {&v_g, &v_X, &v_x_tmp, &v_y[0], &v_y[1], &v_y[2], &v_means, &v_log_scales, &v_quats,
+                              &v_opacities, &v_colors, &v_means2d, &v_ls_volume, &v_rgb})
+      std::vector<T>().swap(*v);
+  }
+  // The hidden-layer buffer decoder MLP m (opacity, cov, colour) writes in its forward.
+  T* hidden_of(int m) { return hidden[gradients_ ? m : 0].data(); }
+  // The per-kept-Gaussian buffers for N Gaussians (contents are not kept).
+  void plan_gaussians(size_t N) {
+    gaussian_capacity = N;
+    const size_t gN = gradients_ ? N : 0;
     this->assign_rows(N);
     for (auto* v : {&v_means, &v_log_scales, &v_colors, &v_ls_volume}) v->assign(gN * 3, T(0));
     v_quats.assign(gN * 4, T(0));
     v_opacities.assign(gN, T(0));
     v_means2d.assign(gN * 2, T(0));
-    rgb.assign(size_t(width) * size_t(height) * 3, T(0));
-    v_rgb.assign(gradients ? rgb.size() : 0, T(0));
   }
+  // Grows the plan when a view has more visible anchors / kept Gaussians than it holds.
+  void ensure_visible(size_t V) {
+    if (V <= visible_capacity) return;
+    plan_visible(std::min(capacity, V + V / 2));
+    ++replans;
+  }
+  void ensure_gaussians(size_t N) {
+    if (N <= gaussian_capacity) return;
+    plan_gaussians(std::min(capacity * size_t(k_), N + N / 2));
+    ++replans;
+  }
+
+ private:
+  int k_ = 1, G_ = 0;
+  bool gradients_ = true;
+  simd::MlpShape shapes_[kMlpCount];
 };
 
 namespace detail {
@@ -196,6 +250,7 @@ size_t decode_view(Backend& be, const ModelParamsT<T>& p, const Camera& cam, Ste
     V += part_size[i];
   }
   clock.lap(kStageAnchorSelect);
+  ws.ensure_visible(V);
 
   double centre[3];
   camera_centre(cam.pose, centre);
@@ -215,7 +270,7 @@ size_t decode_view(Backend& be, const ModelParamsT<T>& p, const Camera& cam, Ste
     build_decoder_input_range(a, rows, b, e, g, G, centre, ws.X.data());
   });
   clock.lap(kStageDecoderInput);
-  for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden[m].data(), ws.y[m].data());
+  for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden_of(m), ws.y[m].data());
   clock.lap(kStageDecoderMlpFwd);
   *visible = V;
 
@@ -225,6 +280,7 @@ size_t decode_view(Backend& be, const ModelParamsT<T>& p, const Camera& cam, Ste
   const T* y_col = ws.y[kMlpColor].data();
   parts = detail::part_count(pool, V, 256);
   if (parts <= 1) {
+    if (V * size_t(k) > ws.gaussian_capacity) ws.ensure_gaussians(count_kept_range(k, 0, V, y_op, y_cov));
     ws.ng.count = decode_fwd_range(a, rows, 0, V, y_op, y_cov, y_col, 0, &ws.ng);
     clock.lap(kStageDecodeFwd);
     return ws.ng.count;
@@ -238,6 +294,7 @@ size_t decode_view(Backend& be, const ModelParamsT<T>& p, const Camera& cam, Ste
     part_offset[i] = N;
     N += part_size[i];
   }
+  ws.ensure_gaussians(N);
   detail::for_parts(pool, V, parts, [&](size_t i, size_t b, size_t e) {
     decode_fwd_range(a, rows, b, e, y_op, y_cov, y_col, part_offset[i], &ws.ng);
   });

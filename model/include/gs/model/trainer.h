@@ -157,6 +157,15 @@ class Trainer {
 
   // Bytes allocated at create() (model capacity, optimiser, workspace, renderer arena).
   uint64_t planned_bytes() const;
+  // Frees what only further steps use: the decoder's gradient buffers and the growth scratch
+  // (about 20 MiB for snowmiku_plush at 1,000 iterations), so that the evaluation after the last
+  // step does not add to the peak. render() and the checkpoint are unaffected; a later step() plans
+  // them again first (one allocation).
+  void release_step_memory();
+  // Times a step or render found more visible anchors or kept Gaussians than the decoder workspace
+  // was planned for and grew it (each one allocation; the plan follows a visibility dry run and the
+  // counts seen, see docs/MODEL.md).
+  int workspace_replans() const;
 
   // Profiling: every later step() adds its stages' wall time and counts to *times (gs/stage_times.h;
   // StageTimes::finish_iteration per step); render() never does. Null (the default) turns it off:
