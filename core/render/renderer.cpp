@@ -507,7 +507,10 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
   // contiguous ranges, counted and emitted in parallel (the tiles each Gaussian reaches were found
   // in the projection above); a tile's keys are range 0's, then range 1's, ..., so they arrive in
   // increasing id order as sort_tile_keys needs, whatever the number of ranges.
-  const size_t ranges = std::min<size_t>(kBinRanges, m.pool ? size_t(m.pool->num_threads()) : 1);
+  // A few ranges per thread (claimed dynamically), so a late thread or a dear range does not
+  // leave the other threads waiting.
+  const size_t threads = m.pool ? size_t(m.pool->num_threads()) : 1;
+  const size_t ranges = threads > 1 ? std::min<size_t>(kBinRanges, 4 * threads) : 1;
   const size_t tiles = size_t(m.tiles);
   auto range_begin = [&](size_t r) { return r * n / ranges; };
   auto count = [&](size_t b, size_t e, int) {

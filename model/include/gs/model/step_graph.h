@@ -18,8 +18,10 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include "gs/camera.h"
@@ -169,6 +171,35 @@ void parallel_ranges(platform::ThreadPool* pool, size_t n, size_t min_items, F&&
 
 }  // namespace detail
 
+// volume_fwd_bwd into v_log_scales (zeroed first), exactly: on a pool the volumes (the exps) are
+// computed in parallel ranges into `scratch` (bytes, at least 8 N; the caller lends a buffer that
+// is free at this point) and summed afterwards in index order, the serial pass's sum.
+template <class T>
+double volume_term(platform::ThreadPool* pool, size_t N, const T* log_scales, double weight, T* v_log_scales,
+                   void* scratch, size_t scratch_bytes) {
+  if (!pool || pool->num_threads() <= 1 || weight == 0 || N < 4096 || scratch_bytes < N * sizeof(double)) {
+    std::fill(v_log_scales, v_log_scales + 3 * N, T(0));
+    return volume_fwd_bwd(N, log_scales, weight, v_log_scales);
+  }
+  unsigned char* volumes = static_cast<unsigned char*>(scratch);
+  const double w = weight / double(N);
+  detail::parallel_ranges(pool, N, 2048, [&](size_t b, size_t e) {
+    for (size_t n = b; n < e; ++n) {
+      const double vol =
+          std::exp(double(log_scales[3 * n]) + double(log_scales[3 * n + 1]) + double(log_scales[3 * n + 2]));
+      std::memcpy(volumes + n * sizeof(double), &vol, sizeof(double));
+      for (int l = 0; l < 3; ++l) v_log_scales[3 * n + l] = T(0) + T(w * vol);  // volume_fwd_bwd's 0 += ...
+    }
+  });
+  double sum = 0;
+  for (size_t n = 0; n < N; ++n) {
+    double vol;
+    std::memcpy(&vol, volumes + n * sizeof(double), sizeof(double));
+    sum += vol;
+  }
+  return w * sum;
+}
+
 // Forward up to the kept neural Gaussians of one view (ws.ng); returns N and sets *visible = V.
 // The anchor loops run over the backend's pool (if any) with the results of one thread:
 // visibility and decoding are done per range and joined in range order.
@@ -270,8 +301,8 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   out->ssim = ssim;
   out->visible_anchors = V;
   out->gaussians = N;
-  std::fill(ws.v_ls_volume.begin(), ws.v_ls_volume.begin() + std::ptrdiff_t(3 * N), T(0));
-  out->volume = volume_fwd_bwd(N, ws.log_scales.data(), cfg.volume_weight, ws.v_ls_volume.data());
+  out->volume = volume_term(pool, N, ws.log_scales.data(), cfg.volume_weight, ws.v_ls_volume.data(),
+                            ws.v_means2d.data(), ws.v_means2d.size() * sizeof(T));
   out->loss = (1 - cfg.ssim_lambda) * l1 + cfg.ssim_lambda * (1 - ssim) + out->volume;
   clock.lap(kStageLoss);
   if (!grads) return Status::Ok();
