@@ -75,6 +75,33 @@ class FloatBackend {
     run(size_t(chunks), body);
   }
 
+  // mlp_fwd of `count` MLPs on the same rows in one pass over the pool (count x the fixed chunks
+  // claimed together, so the threads meet once, not once per MLP); each chunk's output is mlp_fwd's.
+  void mlp_fwd_group(int count, const simd::MlpShape* const* s, int32_t batch, const float* x, const float* const* p,
+                     float* const* hidden, float* const* y) {
+    bool any_int8 = false;
+    for (int m = 0; m < count; ++m)
+      for (int id = 0; id < kMlpCount; ++id) any_int8 |= int8_ && int8_->mlps[id].present && p[m] == int8_keys_[id];
+    if (any_int8) {  // the int8 path's row scratch is shared by the MLPs: one at a time
+      for (int m = 0; m < count; ++m) mlp_fwd(*s[m], batch, x, p[m], hidden[m], y[m]);
+      return;
+    }
+    const int chunks = chunk_count(batch);
+    auto body = [&](size_t b, size_t e, int) {
+      for (size_t item = b; item < e; ++item) {
+        const int m = int(item) / chunks, c = int(item) % chunks;
+        const simd::MlpShape& sm = *s[m];
+        const float* pm = p[m];
+        int32_t r0, r1;
+        chunk_rows(batch, chunks, c, &r0, &r1);
+        if (r1 > r0)
+          kt_->mlp_fwd(&sm, r1 - r0, x + size_t(r0) * size_t(sm.in), pm, pm + Mlp::off_b1(sm), pm + Mlp::off_W2(sm),
+                       pm + Mlp::off_b2(sm), hidden[m] + size_t(r0) * size_t(sm.hidden), y[m] + size_t(r0) * size_t(sm.out));
+      }
+    };
+    run(size_t(count) * size_t(chunks), body);
+  }
+
   void mlp_bwd(const simd::MlpShape& s, int32_t batch, const float* x, const float* p, const float* hidden,
                const float* y, const float* v_y, float* v_x, float* v_p) {
     const int chunks = chunk_count(batch);

@@ -138,6 +138,24 @@ platform::ThreadPool* backend_pool(Backend&, long) {
   return nullptr;
 }
 
+// The three decoder MLPs forward on the same input rows: in one pass when the Backend has
+// mlp_fwd_group (FloatBackend), else one after another.
+template <class Backend, class T>
+auto decoder_mlps_fwd(Backend& be, int, const simd::MlpShape* sh, int32_t V, const T* X, const T* const* params,
+                      std::vector<T>* hidden, std::vector<T>* y)
+    -> decltype(be.mlp_fwd_group(3, static_cast<const simd::MlpShape* const*>(nullptr), V, X, params,
+                                 static_cast<T* const*>(nullptr), static_cast<T* const*>(nullptr))) {
+  const simd::MlpShape* shapes[3] = {&sh[0], &sh[1], &sh[2]};
+  T* const h[3] = {hidden[0].data(), hidden[1].data(), hidden[2].data()};
+  T* const out[3] = {y[0].data(), y[1].data(), y[2].data()};
+  return be.mlp_fwd_group(3, shapes, V, X, params, h, out);
+}
+template <class Backend, class T>
+void decoder_mlps_fwd(Backend& be, long, const simd::MlpShape* sh, int32_t V, const T* X, const T* const* params,
+                      std::vector<T>* hidden, std::vector<T>* y) {
+  for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], V, X, params[m], hidden[m].data(), y[m].data());
+}
+
 // Splits [0, n) into `parts` contiguous ranges (part i is [i n / parts, (i + 1) n / parts)).
 inline size_t part_begin(size_t n, size_t parts, size_t i) { return i * n / parts; }
 
@@ -246,7 +264,7 @@ size_t decode_view(Backend& be, const ModelParamsT<T>& p, const Camera& cam, Ste
     build_decoder_input_range(a, rows, b, e, g, G, centre, ws.X.data());
   });
   clock.lap(kStageDecoderInput);
-  for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden[m].data(), ws.y[m].data());
+  detail::decoder_mlps_fwd(be, 0, sh, int32_t(V), ws.X.data(), p.mlp, ws.hidden, ws.y);
   clock.lap(kStageDecoderMlpFwd);
   *visible = V;
 
