@@ -187,6 +187,37 @@ void parallel_ranges(platform::ThreadPool* pool, size_t n, size_t min_items, F&&
   for_parts(pool, n, part_count(pool, n, min_items), [&](size_t, size_t b, size_t e) { f(b, e); });
 }
 
+// The three decoder MLPs backward: weight gradients accumulate into v_p[m]; the input gradient
+// ws.v_X = (v_x of 0 + v_x of 1) + v_x of 2. In two pool passes when the Backend has
+// mlp_bwd_decoders (FloatBackend), else MLP by MLP with the sums in between.
+template <class Backend, class T>
+auto decoder_mlps_bwd(Backend& be, int, platform::ThreadPool*, const simd::MlpShape* sh, int32_t V, size_t,
+                      const T* const* params, StepWorkspace<T>& ws, T* const* v_p)
+    -> decltype(be.mlp_bwd_decoders(static_cast<const simd::MlpShape* const*>(nullptr), V, ws.X.data(), params,
+                                    static_cast<const T* const*>(nullptr), static_cast<const T* const*>(nullptr),
+                                    static_cast<const T* const*>(nullptr), ws.v_X.data(), ws.v_x_tmp.data(), v_p)) {
+  const simd::MlpShape* shapes[3] = {&sh[0], &sh[1], &sh[2]};
+  const T* const hidden[3] = {ws.hidden[0].data(), ws.hidden[1].data(), ws.hidden[2].data()};
+  const T* const y[3] = {ws.y[0].data(), ws.y[1].data(), ws.y[2].data()};
+  const T* const v_y[3] = {ws.v_y[0].data(), ws.v_y[1].data(), ws.v_y[2].data()};
+  return be.mlp_bwd_decoders(shapes, V, ws.X.data(), params, hidden, y, v_y, ws.v_X.data(), ws.v_x_tmp.data(), v_p);
+}
+template <class Backend, class T>
+void decoder_mlps_bwd(Backend& be, long, platform::ThreadPool* pool, const simd::MlpShape* sh, int32_t V, size_t D,
+                      const T* const* params, StepWorkspace<T>& ws, T* const* v_p) {
+  for (int m = 0; m < 3; ++m) {
+    T* v_x = m == 0 ? ws.v_X.data() : ws.v_x_tmp.data();
+    be.mlp_bwd(sh[m], V, ws.X.data(), params[m], ws.hidden[m].data(), ws.y[m].data(), ws.v_y[m].data(), v_x, v_p[m]);
+    if (m > 0) {
+      T* v_X = ws.v_X.data();
+      const T* v_tmp = ws.v_x_tmp.data();
+      parallel_ranges(pool, size_t(V) * D, 8192, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) v_X[i] += v_tmp[i];
+      });
+    }
+  }
+}
+
 }  // namespace detail
 
 // volume_fwd_bwd into v_log_scales (zeroed first), exactly: on a pool the volumes (the exps) are
@@ -350,18 +381,7 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   clock.lap(kStageDecodeBwd);
 
   // Decoder MLPs: weight gradients accumulate; input gradients sum over the three.
-  for (int m = 0; m < 3; ++m) {
-    T* v_x = m == 0 ? ws.v_X.data() : ws.v_x_tmp.data();
-    be.mlp_bwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden[m].data(), ws.y[m].data(), ws.v_y[m].data(), v_x,
-               grads->mlp[m]);
-    if (m > 0) {
-      T* v_X = ws.v_X.data();
-      const T* v_tmp = ws.v_x_tmp.data();
-      detail::parallel_ranges(pool, V * D, 8192, [&](size_t b, size_t e) {
-        for (size_t i = b; i < e; ++i) v_X[i] += v_tmp[i];
-      });
-    }
-  }
+  detail::decoder_mlps_bwd(be, 0, pool, sh, int32_t(V), D, p.mlp, ws, grads->mlp);
   clock.lap(kStageMlpBwd);
 
   // The pose: the rasteriser's twist plus the view-direction / distance inputs through the centre.
