@@ -739,6 +739,11 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
       const size_t k0 = m.tile_offsets[band_tile[r]], k1 = m.tile_offsets[band_tile[r + 1]];
       uint64_t* list = m.keys_tmp + k0;
       size_t listed = 0;
+      if (band_start == 0) {  // the first band: every Gaussian of its keys starts in it
+        for (size_t k = k0; k < k1; ++k) add(uint32_t(m.keys[k]), k);
+        deferred[r] = 0;
+        continue;
+      }
       for (size_t k = k0; k < k1; ++k) {
         const uint32_t g = uint32_t(m.keys[k]);
         const int32_t* rect = m.rects + 4 * size_t(g);
