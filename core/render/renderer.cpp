@@ -141,7 +141,6 @@ struct Renderer::Impl {
   // per tile
   uint32_t* tile_offsets;  // [tiles + 1]
   uint32_t* range_counts;  // [kBinRanges, tiles] binning: keys per range and tile, then cursors
-  uint32_t* tile_order;    // [tiles] the order the tile passes hand tiles out: most intersections first
   size_t range_visible[kBinRanges];
   float range_max_depth[kBinRanges];
   // per intersection
@@ -188,7 +187,6 @@ struct Renderer::Impl {
     chunk_pose = c.take<double>((G / kProjectGrain + 1) * 6);
     tile_offsets = c.take<uint32_t>(tiles_max + 1);
     range_counts = c.take<uint32_t>(tiles_max * kBinRanges);
-    tile_order = c.take<uint32_t>(tiles_max);
     keys = c.take<uint64_t>(I);
     keys_tmp = c.take<uint64_t>(I);
     splats = c.take<float>(I * simd::kSplatStride);
@@ -302,24 +300,6 @@ struct Renderer::Impl {
       for (int tx = r[0]; tx < r[2]; ++tx)
         if (simd::splat_reaches_tile(means2d + 2 * i, conics + 3 * i, two_tau, tx, ty, pp.width, pp.height))
           f(ty * pp.tiles_x + tx);
-  }
-
-  // tile_order: tiles by decreasing intersection count (by its highest bit, then tile index), so
-  // the dynamically claimed tile passes start with the dearest tiles and end with cheap ones
-  // instead of leaving one thread alone on a late dear tile. Only the order of work changes: each
-  // tile writes its own outputs.
-  void order_tiles() {
-    constexpr int kBuckets = 33;  // 0 for an empty tile, else 1 + floor(log2(count))
-    uint32_t start[kBuckets + 1] = {};
-    auto bucket = [&](int tile) {
-      const uint32_t c = tile_offsets[tile + 1] - tile_offsets[tile];
-      int b = 0;
-      for (uint32_t v = c; v != 0; v >>= 1) ++b;
-      return kBuckets - 1 - b;  // descending
-    };
-    for (int t = 0; t < tiles; ++t) ++start[bucket(t) + 1];
-    for (int b = 0; b < kBuckets; ++b) start[b + 1] += start[b];
-    for (int t = 0; t < tiles; ++t) tile_order[start[bucket(t)]++] = uint32_t(t);
   }
 
   void tile_range(int tile, uint32_t* begin, uint32_t* end) const {
@@ -544,7 +524,6 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
     }
   }
   m.tile_offsets[tiles] = uint32_t(total);
-  if (total <= uint64_t(capacity_.max_isects)) m.order_tiles();
   stats_.visible = visible;
   stats_.isects = size_t(std::min<uint64_t>(total, SIZE_MAX));
   if (total > uint64_t(capacity_.max_isects))
@@ -593,8 +572,7 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
   // 3. Per tile: sort by (depth, id), copy the records in that order, blend.
   auto raster = [&](size_t b, size_t e, int) {
     uint64_t sort_ns = 0, raster_ns = 0, t0 = times ? platform::now_ns() : 0;  // two clock reads per tile
-    for (size_t item = b; item < e; ++item) {
-      const size_t tile = m.tile_order[item];
+    for (size_t tile = b; tile < e; ++tile) {
       uint32_t begin, end;
       m.tile_range(int(tile), &begin, &end);
       sort_tile_keys(m.keys + begin, m.keys_tmp + begin, end - begin);
@@ -701,10 +679,9 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
         zero_acc(r * n / bands, (r + 1) * n / bands);
         continue;
       }
-      const int tile = int(m.tile_order[item]);
       uint32_t begin, end;
-      m.tile_range(tile, &begin, &end);
-      const int tx = tile % pp.tiles_x, ty = tile / pp.tiles_x;
+      m.tile_range(int(item), &begin, &end);
+      const int tx = int(item) % pp.tiles_x, ty = int(item) / pp.tiles_x;
       m.kernels->raster_bwd_tile(&m.rp, tx, ty, m.splats + size_t(begin) * simd::kSplatStride, int32_t(end - begin),
                                  m.final_T, m.last, v_rgb, m.v_splats + size_t(begin) * simd::kSplatStride);
     }
@@ -821,10 +798,8 @@ Status Renderer::pose_normal_equations(const float* target, const float* mask, f
 
   // 2. Per tile: tangents through blending, normal equations into the tile's own slot.
   auto tiles = [&](size_t b, size_t e, int) {
-    for (size_t item = b; item < e; ++item) {
-      const size_t tile = m.tile_order[item];
+    for (size_t tile = b; tile < e; ++tile)
       m.pose_tile(int(tile), target, mask, huber_delta, out_jacobian, m.pose_slots + tile * kPoseSlot);
-    }
   };
   run_parallel(m.pool, size_t(m.tiles), 1, tiles);
 
