@@ -55,7 +55,7 @@ class FloatBackend {
     loss_scratch_stride_ = simd::loss_scratch_floats(max_width, 1);
     loss_scratch_.assign(loss_scratch_stride_ * size_t(pool ? pool->num_threads() : 1), 0.0f);
     loss_rows_.assign(2 * size_t(std::max(max_height, 0)), 0.0);
-    chunk_grads_.assign(size_t(kChunks) * max_mlp_params, 0.0f);
+    chunk_grads_.assign(2 * size_t(kChunks) * max_mlp_params, 0.0f);  // two MLPs at once (mlp_bwd_decoders)
     max_mlp_params_ = max_mlp_params;
   }
 
@@ -73,6 +73,33 @@ class FloatBackend {
       }
     };
     run(size_t(chunks), body);
+  }
+
+  // mlp_fwd of `count` MLPs on the same rows in one pass over the pool (count x the fixed chunks
+  // claimed together, so the threads meet once, not once per MLP); each chunk's output is mlp_fwd's.
+  void mlp_fwd_group(int count, const simd::MlpShape* const* s, int32_t batch, const float* x, const float* const* p,
+                     float* const* hidden, float* const* y) {
+    bool any_int8 = false;
+    for (int m = 0; m < count; ++m)
+      for (int id = 0; id < kMlpCount; ++id) any_int8 |= int8_ && int8_->mlps[id].present && p[m] == int8_keys_[id];
+    if (any_int8) {  // the int8 path's row scratch is shared by the MLPs: one at a time
+      for (int m = 0; m < count; ++m) mlp_fwd(*s[m], batch, x, p[m], hidden[m], y[m]);
+      return;
+    }
+    const int chunks = chunk_count(batch);
+    auto body = [&](size_t b, size_t e, int) {
+      for (size_t item = b; item < e; ++item) {
+        const int m = int(item) / chunks, c = int(item) % chunks;
+        const simd::MlpShape& sm = *s[m];
+        const float* pm = p[m];
+        int32_t r0, r1;
+        chunk_rows(batch, chunks, c, &r0, &r1);
+        if (r1 > r0)
+          kt_->mlp_fwd(&sm, r1 - r0, x + size_t(r0) * size_t(sm.in), pm, pm + Mlp::off_b1(sm), pm + Mlp::off_W2(sm),
+                       pm + Mlp::off_b2(sm), hidden[m] + size_t(r0) * size_t(sm.hidden), y[m] + size_t(r0) * size_t(sm.out));
+      }
+    };
+    run(size_t(count) * size_t(chunks), body);
   }
 
   void mlp_bwd(const simd::MlpShape& s, int32_t batch, const float* x, const float* p, const float* hidden,
@@ -97,6 +124,59 @@ class FloatBackend {
       const float* g = chunk_grads_.data() + size_t(c) * max_mlp_params_;
       for (size_t i = 0; i < np; ++i) v_p[i] += g[i];
     }
+  }
+
+  // The three decoder MLPs backward on the same rows x, as mlp_bwd(m = 0), mlp_bwd(1) into v_tmp,
+  // v_x += v_tmp, mlp_bwd(2) into v_tmp, v_x += v_tmp, with the same results, in two passes over
+  // the pool instead of five: MLPs 0 and 1 together (2 x the fixed chunks), then per chunk of MLP 2
+  // its rows' first sum, its backward and the second sum (a chunk's input-gradient rows are its own).
+  void mlp_bwd_decoders(const simd::MlpShape* const* s, int32_t batch, const float* x, const float* const* p,
+                        const float* const* hidden, const float* const* y, const float* const* v_y, float* v_x,
+                        float* v_tmp, float* const* v_p) {
+    const int chunks = chunk_count(batch);
+    const size_t in = size_t(s[0]->in);
+    auto chunk_bwd = [&](int m, int c, float* v_out, float* g) {
+      const simd::MlpShape& sm = *s[m];
+      const float* pm = p[m];
+      std::fill(g, g + Mlp::param_count(sm), 0.0f);
+      int32_t r0, r1;
+      chunk_rows(batch, chunks, c, &r0, &r1);
+      if (r1 <= r0) return;
+      kt_->mlp_bwd(&sm, r1 - r0, x + size_t(r0) * in, pm, pm + Mlp::off_b1(sm), pm + Mlp::off_W2(sm),
+                   pm + Mlp::off_b2(sm), hidden[m] + size_t(r0) * size_t(sm.hidden), y[m] + size_t(r0) * size_t(sm.out),
+                   v_y[m] + size_t(r0) * size_t(sm.out), v_out + size_t(r0) * in, g, g + Mlp::off_b1(sm),
+                   g + Mlp::off_W2(sm), g + Mlp::off_b2(sm));
+    };
+    auto sum_chunks = [&](int m, size_t first) {  // fixed-order reduction, as mlp_bwd
+      const size_t np = Mlp::param_count(*s[m]);
+      for (int c = 0; c < chunks; ++c) {
+        const float* g = chunk_grads_.data() + (first + size_t(c)) * max_mlp_params_;
+        for (size_t i = 0; i < np; ++i) v_p[m][i] += g[i];
+      }
+    };
+    auto add_rows = [&](int c) {
+      int32_t r0, r1;
+      chunk_rows(batch, chunks, c, &r0, &r1);
+      for (size_t i = size_t(r0) * in; i < size_t(r1) * in; ++i) v_x[i] += v_tmp[i];
+    };
+    auto pass01 = [&](size_t b, size_t e, int) {
+      for (size_t item = b; item < e; ++item) {
+        const int m = int(item) / chunks, c = int(item) % chunks;
+        chunk_bwd(m, c, m == 0 ? v_x : v_tmp, chunk_grads_.data() + item * max_mlp_params_);
+      }
+    };
+    run(2 * size_t(chunks), pass01);
+    sum_chunks(0, 0);
+    sum_chunks(1, size_t(chunks));
+    auto pass2 = [&](size_t b, size_t e, int) {
+      for (size_t c = b; c < e; ++c) {
+        add_rows(int(c));
+        chunk_bwd(2, int(c), v_tmp, chunk_grads_.data() + c * max_mlp_params_);
+        add_rows(int(c));
+      }
+    };
+    run(size_t(chunks), pass2);
+    sum_chunks(2, 0);
   }
 
   Status render_fwd(const Camera& cam, const NeuralGaussians<float>& ng, float* rgb) {

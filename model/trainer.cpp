@@ -281,10 +281,19 @@ void Trainer::Impl::pose_adam(size_t vi, const double g[6], int it) {
 
 void Trainer::Impl::adam_all(int it) {
   const size_t M = model.anchor_count;
+  // Every group in one pass over the pool (the same per-element updates as one adam_step per group).
+  constexpr size_t kMaxGroups = 16;
+  optim::AdamArray arrays[kMaxGroups];
+  size_t count = 0;
   for (detail::ParamGroup& g : groups) {
     const simd::AdamParams ap = optim::adam_params(optim::expon_lr_at(g.lr0, g.lr1, lr_progress), it, opt.adam_eps);
-    optim::adam_step(*kernels, pool, ap, g.live(M), g.param, g.grad.data(), g.m.data(), g.v.data());
+    if (count == kMaxGroups) {  // (not with today's 7 groups)
+      optim::adam_step(*kernels, pool, ap, g.live(M), g.param, g.grad.data(), g.m.data(), g.v.data());
+      continue;
+    }
+    arrays[count++] = optim::AdamArray{ap, g.live(M), g.param, g.grad.data(), g.m.data(), g.v.data()};
   }
+  optim::adam_step_arrays(*kernels, pool, arrays, count);
 }
 
 

@@ -10,9 +10,13 @@
 
 namespace gs::optim {
 
+namespace {
+constexpr size_t kChunk = 16384;  // fixed: a chunk's SIMD tail does not depend on the thread count
+}  // namespace
+
 void adam_step(const simd::KernelTable& kernels, platform::ThreadPool* pool, const simd::AdamParams& p, size_t n,
                float* param, const float* grad, float* m, float* v) {
-  const size_t chunk = 16384;
+  const size_t chunk = kChunk;
   auto body = [&](size_t b, size_t e, int) {
     for (size_t c = b; c < e; ++c) {
       const size_t lo = c * chunk, hi = std::min(n, lo + chunk);
@@ -24,6 +28,27 @@ void adam_step(const simd::KernelTable& kernels, platform::ThreadPool* pool, con
     pool->parallel_for(chunks, 1, body);
   else
     body(0, chunks, 0);
+}
+
+void adam_step_arrays(const simd::KernelTable& kernels, platform::ThreadPool* pool, const AdamArray* arrays,
+                      size_t count) {
+  // Items are (array, chunk) pairs numbered array by array; an item finds its array by a linear
+  // search (a handful of arrays).
+  size_t items = 0;
+  for (size_t a = 0; a < count; ++a) items += (arrays[a].n + kChunk - 1) / kChunk;
+  auto body = [&](size_t b, size_t e, int) {
+    size_t a = 0, first = 0;  // array of item b and the number of its first chunk
+    for (size_t item = b; item < e; ++item) {
+      while (item >= first + (arrays[a].n + kChunk - 1) / kChunk) first += (arrays[a++].n + kChunk - 1) / kChunk;
+      const AdamArray& x = arrays[a];
+      const size_t lo = (item - first) * kChunk, hi = std::min(x.n, lo + kChunk);
+      kernels.adam_step(&x.p, hi - lo, x.param + lo, x.grad + lo, x.m + lo, x.v + lo);
+    }
+  };
+  if (pool && items > 1)
+    pool->parallel_for(items, 1, body);
+  else
+    body(0, items, 0);
 }
 
 void twist_adam_step(const double g[6], double lr_translation, double lr_rotation, int64_t step, double eps,

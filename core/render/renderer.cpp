@@ -26,6 +26,7 @@ constexpr size_t kArenaAlign = 64;
 constexpr size_t kExtraBytes = 64;       // over-read pad after every buffer (GS_EXTRA_BYTES)
 constexpr size_t kProjectGrain = 1024;   // Gaussians per projection chunk
 constexpr size_t kBinRanges = 8;         // most Gaussian ranges binned in parallel
+constexpr size_t kMaxReduceBands = 64;   // most tile bands the intersection reduce runs in
 // Per-tile slot of the pose normal equations (doubles): [0, 21) upper triangle of J^T W J row by
 // row, [21, 27) J^T W r, 27 cost, 28 weight sum, 29 pixel count; padded to 32.
 constexpr int kPoseSlot = 32;
@@ -486,7 +487,10 @@ Status Renderer::forward(const Camera& camera, const GaussianParams& params, con
   // contiguous ranges, counted and emitted in parallel (the tiles each Gaussian reaches were found
   // in the projection above); a tile's keys are range 0's, then range 1's, ..., so they arrive in
   // increasing id order as sort_tile_keys needs, whatever the number of ranges.
-  const size_t ranges = std::min<size_t>(kBinRanges, m.pool ? size_t(m.pool->num_threads()) : 1);
+  // A few ranges per thread (claimed dynamically), so a late thread or a dear range does not
+  // leave the other threads waiting.
+  const size_t threads = m.pool ? size_t(m.pool->num_threads()) : 1;
+  const size_t ranges = threads > 1 ? std::min<size_t>(kBinRanges, 4 * threads) : 1;
   const size_t tiles = size_t(m.tiles);
   auto range_begin = [&](size_t r) { return r * n / ranges; };
   auto count = [&](size_t b, size_t e, int) {
@@ -645,54 +649,95 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
   const simd::ProjectParams& pp = m.pp;
   StageClock clock(times_);
 
-  // 1. Per tile: blend backward into per-intersection gradients.
+  // Bands for the reduce below: contiguous tile ranges holding about equal numbers of
+  // intersections (tile boundaries found by binary search in tile_offsets), one per thread.
+  const size_t tiles = size_t(m.tiles);
+  const size_t total = m.num_isects;
+  const size_t bands = std::max<size_t>(1, std::min<size_t>({kMaxReduceBands, m.pool ? size_t(m.pool->num_threads()) : 1,
+                                                              tiles}));
+  size_t band_tile[kMaxReduceBands + 1];
+  band_tile[0] = 0;
+  for (size_t b = 1; b < bands; ++b) {
+    const uint32_t k = uint32_t(uint64_t(total) * b / bands);
+    band_tile[b] = size_t(std::lower_bound(m.tile_offsets, m.tile_offsets + tiles, k) - m.tile_offsets);
+    band_tile[b] = std::max(band_tile[b], band_tile[b - 1]);
+  }
+  band_tile[bands] = tiles;
+
+  // 1. Per tile: blend backward into per-intersection gradients. The accumulators of the reduce
+  // are zeroed in the same pass (one item per band of Gaussian ids after the tiles).
+  auto zero_acc = [&](size_t g0, size_t g1) {
+    std::fill(m.acc_means2d + 2 * g0, m.acc_means2d + 2 * g1, 0.0f);
+    std::fill(m.acc_conics + 3 * g0, m.acc_conics + 3 * g1, 0.0f);
+    std::fill(m.acc_opacities + g0, m.acc_opacities + g1, 0.0f);
+    std::fill(m.acc_colors + 3 * g0, m.acc_colors + 3 * g1, 0.0f);
+  };
   auto raster = [&](size_t b, size_t e, int) {
-    for (size_t tile = b; tile < e; ++tile) {
+    for (size_t item = b; item < e; ++item) {
+      if (item >= tiles) {
+        const size_t r = item - tiles;
+        zero_acc(r * n / bands, (r + 1) * n / bands);
+        continue;
+      }
       uint32_t begin, end;
-      m.tile_range(int(tile), &begin, &end);
-      const int tx = int(tile) % pp.tiles_x, ty = int(tile) / pp.tiles_x;
+      m.tile_range(int(item), &begin, &end);
+      const int tx = int(item) % pp.tiles_x, ty = int(item) / pp.tiles_x;
       m.kernels->raster_bwd_tile(&m.rp, tx, ty, m.splats + size_t(begin) * simd::kSplatStride, int32_t(end - begin),
                                  m.final_T, m.last, v_rgb, m.v_splats + size_t(begin) * simd::kSplatStride);
     }
   };
-  run_parallel(m.pool, size_t(m.tiles), 1, raster);
+  run_parallel(m.pool, tiles + bands, 1, raster);
   clock.lap(kStageRasterBwd);
 
-  // 2. Reduce intersections to Gaussians in a fixed order (tile-major), so results are reproducible.
-  // In parallel over contiguous ranges of Gaussian ids: each range scans all keys in order and
-  // adds only its own Gaussians' gradients, so every Gaussian sums its intersections in the same
-  // (tile-major) order as a serial pass, whatever the number of ranges.
-  const size_t reduce_ranges = m.pool ? size_t(m.pool->num_threads()) : 1;
+  // 2. Reduce intersections to Gaussians in a fixed order: every Gaussian sums its intersections
+  // in key order (tile-major), starting from zero, whatever the number of threads. Each band of
+  // tiles adds, in key order, the intersections of the Gaussians whose tile rect starts inside it
+  // (no intersection of such a Gaussian lies in an earlier band, and no other band adds to it
+  // now); the rest, Gaussians that started in an earlier band, are listed (in keys_tmp, free
+  // after the forward's sort) and added afterwards band by band, which continues each sum in key
+  // order. Every band reads only its own keys.
+  const uint32_t tiles_x = uint32_t(pp.tiles_x);
+  auto add = [&m](uint32_t g, size_t k) {
+    const float* v = m.v_splats + k * simd::kSplatStride;
+    m.acc_means2d[2 * g] += v[simd::kSplatMx];
+    m.acc_means2d[2 * g + 1] += v[simd::kSplatMy];
+    m.acc_conics[3 * g] += v[simd::kSplatA];
+    m.acc_conics[3 * g + 1] += v[simd::kSplatB];
+    m.acc_conics[3 * g + 2] += v[simd::kSplatC];
+    m.acc_opacities[g] += v[simd::kSplatOpacity];
+    m.acc_colors[3 * g] += v[simd::kSplatR];
+    m.acc_colors[3 * g + 1] += v[simd::kSplatG];
+    m.acc_colors[3 * g + 2] += v[simd::kSplatBlue];
+  };
+  size_t deferred[kMaxReduceBands];
   auto reduce = [&](size_t rb, size_t re, int) {
     for (size_t r = rb; r < re; ++r) {
-      const size_t g0 = r * n / reduce_ranges, g1 = (r + 1) * n / reduce_ranges;
-      std::fill(m.acc_means2d + 2 * g0, m.acc_means2d + 2 * g1, 0.0f);
-      std::fill(m.acc_conics + 3 * g0, m.acc_conics + 3 * g1, 0.0f);
-      std::fill(m.acc_opacities + g0, m.acc_opacities + g1, 0.0f);
-      std::fill(m.acc_colors + 3 * g0, m.acc_colors + 3 * g1, 0.0f);
-      const uint32_t span = uint32_t(g1 - g0);
-      for (size_t k = 0; k < m.num_isects; ++k) {
-        const uint32_t g = uint32_t(m.keys[k]);
-        if (g - uint32_t(g0) >= span) continue;  // another range's Gaussian (unsigned: also g < g0)
-        const float* v = m.v_splats + k * simd::kSplatStride;
-        m.acc_means2d[2 * g] += v[simd::kSplatMx];
-        m.acc_means2d[2 * g + 1] += v[simd::kSplatMy];
-        m.acc_conics[3 * g] += v[simd::kSplatA];
-        m.acc_conics[3 * g + 1] += v[simd::kSplatB];
-        m.acc_conics[3 * g + 2] += v[simd::kSplatC];
-        m.acc_opacities[g] += v[simd::kSplatOpacity];
-        m.acc_colors[3 * g] += v[simd::kSplatR];
-        m.acc_colors[3 * g + 1] += v[simd::kSplatG];
-        m.acc_colors[3 * g + 2] += v[simd::kSplatBlue];
+      const uint32_t band_start = uint32_t(band_tile[r]);
+      const size_t k0 = m.tile_offsets[band_tile[r]], k1 = m.tile_offsets[band_tile[r + 1]];
+      uint64_t* list = m.keys_tmp + k0;
+      size_t listed = 0;
+      if (band_start == 0) {  // the first band: every Gaussian of its keys starts in it
+        for (size_t k = k0; k < k1; ++k) add(uint32_t(m.keys[k]), k);
+        deferred[r] = 0;
+        continue;
       }
-      // The per-Gaussian outputs that are plain copies of the sums, while they are in cache.
-      if (!params.sh && grads->v_colors)
-        std::memcpy(grads->v_colors + 3 * g0, m.acc_colors + 3 * g0, sizeof(float) * 3 * (g1 - g0));
-      if (grads->v_opacities) std::memcpy(grads->v_opacities + g0, m.acc_opacities + g0, sizeof(float) * (g1 - g0));
-      if (grads->v_means2d) std::memcpy(grads->v_means2d + 2 * g0, m.acc_means2d + 2 * g0, sizeof(float) * 2 * (g1 - g0));
+      for (size_t k = k0; k < k1; ++k) {
+        const uint32_t g = uint32_t(m.keys[k]);
+        const int32_t* rect = m.rects + 4 * size_t(g);
+        if (uint32_t(rect[1]) * tiles_x + uint32_t(rect[0]) >= band_start) {
+          add(g, k);
+        } else {
+          list[listed++] = k;
+        }
+      }
+      deferred[r] = listed;
     }
   };
-  run_parallel(m.pool, reduce_ranges, 1, reduce);
+  run_parallel(m.pool, bands, 1, reduce);
+  for (size_t r = 1; r < bands; ++r) {
+    const uint64_t* list = m.keys_tmp + m.tile_offsets[band_tile[r]];
+    for (size_t j = 0; j < deferred[r]; ++j) add(uint32_t(m.keys[list[j]]), size_t(list[j]));
+  }
   clock.lap(kStageReduce);
 
   // 3. Projection backward in chunks; each chunk sums its own pose gradient, chunks are summed in order.
@@ -702,6 +747,11 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
   const size_t chunks = (n + kProjectGrain - 1) / kProjectGrain;
   std::fill(m.chunk_pose, m.chunk_pose + 6 * chunks, 0.0);
   auto project = [&](size_t b, size_t e, int) {
+    // The per-Gaussian outputs that are plain copies of the sums.
+    if (!params.sh && grads->v_colors)
+      std::memcpy(grads->v_colors + 3 * b, m.acc_colors + 3 * b, sizeof(float) * 3 * (e - b));
+    if (grads->v_opacities) std::memcpy(grads->v_opacities + b, m.acc_opacities + b, sizeof(float) * (e - b));
+    if (grads->v_means2d) std::memcpy(grads->v_means2d + 2 * b, m.acc_means2d + 2 * b, sizeof(float) * 2 * (e - b));
     m.kernels->project_bwd(&pp, e - b, params.means + 3 * b, params.log_scales + 3 * b, params.quats + 4 * b,
                            m.radii + b, m.acc_means2d + 2 * b, m.acc_conics + 3 * b, nullptr, v_means + 3 * b,
                            v_log_scales + 3 * b, v_quats + 4 * b, m.chunk_pose + 6 * (b / kProjectGrain));
@@ -723,7 +773,7 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
       for (int k = 0; k < 3; ++k)
         grads->v_pose[k] -= double(R[k * 3] * v_campos[0] + R[k * 3 + 1] * v_campos[1] + R[k * 3 + 2] * v_campos[2]);
     }
-  }  // (v_colors without SH, v_opacities and v_means2d were copied in step 2)
+  }  // (v_colors without SH, v_opacities and v_means2d were copied in step 3)
   clock.lap(kStageProjectBwd);
   return Status::Ok();
 }

@@ -15,6 +15,8 @@
 #include <vector>
 
 #include "gs/model/decode.h"
+#include "gs/model/step_graph.h"
+#include "gs/platform/thread_pool.h"
 #include "support/random_scene.h"
 
 namespace gs::model {
@@ -327,6 +329,28 @@ TEST_CASE("decode: volume regulariser value and finite-difference gradient") {
   CHECK(volume_fwd_bwd(size_t(0), ls.data(), weight, untouched.data()) == 0);
   CHECK(volume_fwd_bwd(N, ls.data(), 0.0, untouched.data()) == 0);
   for (double x : untouched) CHECK(x == 1.5);
+}
+
+// The step graph's volume_term: on a pool the exps run in parallel ranges and the sum follows in
+// index order, so value and gradient are volume_fwd_bwd's bit for bit (float, as in training).
+TEST_CASE("decode: volume_term on 1, 2 and 3 threads is volume_fwd_bwd exactly") {
+  std::mt19937_64 rng(8);
+  std::uniform_real_distribution<float> u(-6, 1);
+  const size_t N = 20011;
+  std::vector<float> ls(3 * N);
+  for (float& x : ls) x = u(rng);
+  const double weight = 0.01;
+  std::vector<float> expect_v(3 * N, 0.0f);
+  const double expect = volume_fwd_bwd(N, ls.data(), weight, expect_v.data());
+  std::vector<double> scratch(N);
+  for (int threads : {1, 2, 3}) {
+    CAPTURE(threads);
+    platform::ThreadPool pool(threads);
+    std::vector<float> v(3 * N, 9.0f);  // volume_term zeroes it first
+    const double got = volume_term(&pool, N, ls.data(), weight, v.data(), scratch.data(), N * sizeof(double));
+    CHECK(got == expect);
+    CHECK(v == expect_v);
+  }
 }
 
 TEST_CASE("decode: decoder input rows are features then image features then direction and distance") {

@@ -18,8 +18,10 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include "gs/camera.h"
@@ -190,6 +192,24 @@ platform::ThreadPool* backend_pool(Backend&, long) {
   return nullptr;
 }
 
+// The three decoder MLPs forward on the same input rows: in one pass when the Backend has
+// mlp_fwd_group (FloatBackend), else one after another.
+template <class Backend, class T>
+auto decoder_mlps_fwd(Backend& be, int, const simd::MlpShape* sh, int32_t V, const T* X, const T* const* params,
+                      std::vector<T>* hidden, std::vector<T>* y)
+    -> decltype(be.mlp_fwd_group(3, static_cast<const simd::MlpShape* const*>(nullptr), V, X, params,
+                                 static_cast<T* const*>(nullptr), static_cast<T* const*>(nullptr))) {
+  const simd::MlpShape* shapes[3] = {&sh[0], &sh[1], &sh[2]};
+  T* const h[3] = {hidden[0].data(), hidden[1].data(), hidden[2].data()};
+  T* const out[3] = {y[0].data(), y[1].data(), y[2].data()};
+  return be.mlp_fwd_group(3, shapes, V, X, params, h, out);
+}
+template <class Backend, class T>
+void decoder_mlps_fwd(Backend& be, long, const simd::MlpShape* sh, int32_t V, const T* X, const T* const* params,
+                      std::vector<T>* hidden, std::vector<T>* y) {
+  for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], V, X, params[m], hidden[m].data(), y[m].data());
+}
+
 // Splits [0, n) into `parts` contiguous ranges (part i is [i n / parts, (i + 1) n / parts)).
 inline size_t part_begin(size_t n, size_t parts, size_t i) { return i * n / parts; }
 
@@ -221,7 +241,67 @@ void parallel_ranges(platform::ThreadPool* pool, size_t n, size_t min_items, F&&
   for_parts(pool, n, part_count(pool, n, min_items), [&](size_t, size_t b, size_t e) { f(b, e); });
 }
 
+// The three decoder MLPs backward: weight gradients accumulate into v_p[m]; the input gradient
+// ws.v_X = (v_x of 0 + v_x of 1) + v_x of 2. In two pool passes when the Backend has
+// mlp_bwd_decoders (FloatBackend), else MLP by MLP with the sums in between.
+template <class Backend, class T>
+auto decoder_mlps_bwd(Backend& be, int, platform::ThreadPool*, const simd::MlpShape* sh, int32_t V, size_t,
+                      const T* const* params, StepWorkspace<T>& ws, T* const* v_p)
+    -> decltype(be.mlp_bwd_decoders(static_cast<const simd::MlpShape* const*>(nullptr), V, ws.X.data(), params,
+                                    static_cast<const T* const*>(nullptr), static_cast<const T* const*>(nullptr),
+                                    static_cast<const T* const*>(nullptr), ws.v_X.data(), ws.v_x_tmp.data(), v_p)) {
+  const simd::MlpShape* shapes[3] = {&sh[0], &sh[1], &sh[2]};
+  const T* const hidden[3] = {ws.hidden[0].data(), ws.hidden[1].data(), ws.hidden[2].data()};
+  const T* const y[3] = {ws.y[0].data(), ws.y[1].data(), ws.y[2].data()};
+  const T* const v_y[3] = {ws.v_y[0].data(), ws.v_y[1].data(), ws.v_y[2].data()};
+  return be.mlp_bwd_decoders(shapes, V, ws.X.data(), params, hidden, y, v_y, ws.v_X.data(), ws.v_x_tmp.data(), v_p);
+}
+template <class Backend, class T>
+void decoder_mlps_bwd(Backend& be, long, platform::ThreadPool* pool, const simd::MlpShape* sh, int32_t V, size_t D,
+                      const T* const* params, StepWorkspace<T>& ws, T* const* v_p) {
+  for (int m = 0; m < 3; ++m) {
+    T* v_x = m == 0 ? ws.v_X.data() : ws.v_x_tmp.data();
+    be.mlp_bwd(sh[m], V, ws.X.data(), params[m], ws.hidden[m].data(), ws.y[m].data(), ws.v_y[m].data(), v_x, v_p[m]);
+    if (m > 0) {
+      T* v_X = ws.v_X.data();
+      const T* v_tmp = ws.v_x_tmp.data();
+      parallel_ranges(pool, size_t(V) * D, 8192, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) v_X[i] += v_tmp[i];
+      });
+    }
+  }
+}
+
 }  // namespace detail
+
+// volume_fwd_bwd into v_log_scales (zeroed first), exactly: on a pool the volumes (the exps) are
+// computed in parallel ranges into `scratch` (bytes, at least 8 N; the caller lends a buffer that
+// is free at this point) and summed afterwards in index order, the serial pass's sum.
+template <class T>
+double volume_term(platform::ThreadPool* pool, size_t N, const T* log_scales, double weight, T* v_log_scales,
+                   void* scratch, size_t scratch_bytes) {
+  if (!pool || pool->num_threads() <= 1 || weight == 0 || N < 4096 || scratch_bytes < N * sizeof(double)) {
+    std::fill(v_log_scales, v_log_scales + 3 * N, T(0));
+    return volume_fwd_bwd(N, log_scales, weight, v_log_scales);
+  }
+  unsigned char* volumes = static_cast<unsigned char*>(scratch);
+  const double w = weight / double(N);
+  detail::parallel_ranges(pool, N, 2048, [&](size_t b, size_t e) {
+    for (size_t n = b; n < e; ++n) {
+      const double vol =
+          std::exp(double(log_scales[3 * n]) + double(log_scales[3 * n + 1]) + double(log_scales[3 * n + 2]));
+      std::memcpy(volumes + n * sizeof(double), &vol, sizeof(double));
+      for (int l = 0; l < 3; ++l) v_log_scales[3 * n + l] = T(0) + T(w * vol);  // volume_fwd_bwd's 0 += ...
+    }
+  });
+  double sum = 0;
+  for (size_t n = 0; n < N; ++n) {
+    double vol;
+    std::memcpy(&vol, volumes + n * sizeof(double), sizeof(double));
+    sum += vol;
+  }
+  return w * sum;
+}
 
 // Forward up to the kept neural Gaussians of one view (ws.ng); returns N and sets *visible = V.
 // The anchor loops run over the backend's pool (if any) with the results of one thread:
@@ -270,7 +350,11 @@ size_t decode_view(Backend& be, const ModelParamsT<T>& p, const Camera& cam, Ste
     build_decoder_input_range(a, rows, b, e, g, G, centre, ws.X.data());
   });
   clock.lap(kStageDecoderInput);
-  for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden_of(m), ws.y[m].data());
+  if (ws.hidden_of(1) != ws.hidden_of(0)) {  // own hidden layers (training): the three MLPs run together
+    detail::decoder_mlps_fwd(be, 0, sh, int32_t(V), ws.X.data(), p.mlp, ws.hidden, ws.y);
+  } else {  // no gradients: the three share one hidden buffer, so one after another
+    for (int m = 0; m < 3; ++m) be.mlp_fwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden_of(m), ws.y[m].data());
+  }
   clock.lap(kStageDecoderMlpFwd);
   *visible = V;
 
@@ -327,8 +411,8 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   out->ssim = ssim;
   out->visible_anchors = V;
   out->gaussians = N;
-  std::fill(ws.v_ls_volume.begin(), ws.v_ls_volume.begin() + std::ptrdiff_t(3 * N), T(0));
-  out->volume = volume_fwd_bwd(N, ws.log_scales.data(), cfg.volume_weight, ws.v_ls_volume.data());
+  out->volume = volume_term(pool, N, ws.log_scales.data(), cfg.volume_weight, ws.v_ls_volume.data(),
+                            ws.v_means2d.data(), ws.v_means2d.size() * sizeof(T));
   out->loss = (1 - cfg.ssim_lambda) * l1 + cfg.ssim_lambda * (1 - ssim) + out->volume;
   clock.lap(kStageLoss);
   if (!grads) return Status::Ok();
@@ -358,18 +442,7 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   clock.lap(kStageDecodeBwd);
 
   // Decoder MLPs: weight gradients accumulate; input gradients sum over the three.
-  for (int m = 0; m < 3; ++m) {
-    T* v_x = m == 0 ? ws.v_X.data() : ws.v_x_tmp.data();
-    be.mlp_bwd(sh[m], int32_t(V), ws.X.data(), p.mlp[m], ws.hidden[m].data(), ws.y[m].data(), ws.v_y[m].data(), v_x,
-               grads->mlp[m]);
-    if (m > 0) {
-      T* v_X = ws.v_X.data();
-      const T* v_tmp = ws.v_x_tmp.data();
-      detail::parallel_ranges(pool, V * D, 8192, [&](size_t b, size_t e) {
-        for (size_t i = b; i < e; ++i) v_X[i] += v_tmp[i];
-      });
-    }
-  }
+  detail::decoder_mlps_bwd(be, 0, pool, sh, int32_t(V), D, p.mlp, ws, grads->mlp);
   clock.lap(kStageMlpBwd);
 
   // The pose: the rasteriser's twist plus the view-direction / distance inputs through the centre.

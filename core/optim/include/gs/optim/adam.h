@@ -43,6 +43,19 @@ void adam_step(const simd::KernelTable& kernels, platform::ThreadPool* pool, con
                const float* grad,   // [n]
                float* m, float* v);  // [n] moments
 
+// One Adam step over each of `count` arrays (array i: n[i] floats with constants p[i]), as
+// adam_step on each, but in one pass over the pool: the fixed chunks of every array are claimed
+// together, so small arrays do not run alone and the threads meet once. Same results as adam_step.
+struct AdamArray {
+  simd::AdamParams p;
+  size_t n = 0;
+  float* param = nullptr;
+  const float* grad = nullptr;
+  float *m = nullptr, *v = nullptr;
+};
+void adam_step_arrays(const simd::KernelTable& kernels, platform::ThreadPool* pool, const AdamArray* arrays,
+                      size_t count);
+
 // One Adam step on a 6-DoF twist (rho[3], phi[3]) in double: updates the moments m, v [6] from the
 // gradient g [6] and writes the increment xi [6] (to be applied to the pose, e.g. by
 // pose::apply_left_twist), with rate lr_translation for rho and lr_rotation for phi.
