@@ -64,13 +64,7 @@ class FloatBackend {
       if (int8_ && int8_->mlps[id].present && p == int8_keys_[id]) return mlp_fwd_int8(int8_->mlps[id], batch, x, y);
     const int chunks = chunk_count(batch);
     auto body = [&](size_t b, size_t e, int) {
-      for (size_t c = b; c < e; ++c) {
-        int32_t r0, r1;
-        chunk_rows(batch, chunks, int(c), &r0, &r1);
-        if (r1 > r0)
-          kt_->mlp_fwd(&s, r1 - r0, x + size_t(r0) * size_t(s.in), p, p + Mlp::off_b1(s), p + Mlp::off_W2(s),
-                       p + Mlp::off_b2(s), hidden + size_t(r0) * size_t(s.hidden), y + size_t(r0) * size_t(s.out));
-      }
+      for (size_t c = b; c < e; ++c) fwd_chunk(s, batch, chunks, int(c), x, p, hidden, y);
     };
     run(size_t(chunks), body);
   }
@@ -89,14 +83,8 @@ class FloatBackend {
     const int chunks = chunk_count(batch);
     auto body = [&](size_t b, size_t e, int) {
       for (size_t item = b; item < e; ++item) {
-        const int m = int(item) / chunks, c = int(item) % chunks;
-        const simd::MlpShape& sm = *s[m];
-        const float* pm = p[m];
-        int32_t r0, r1;
-        chunk_rows(batch, chunks, c, &r0, &r1);
-        if (r1 > r0)
-          kt_->mlp_fwd(&sm, r1 - r0, x + size_t(r0) * size_t(sm.in), pm, pm + Mlp::off_b1(sm), pm + Mlp::off_W2(sm),
-                       pm + Mlp::off_b2(sm), hidden[m] + size_t(r0) * size_t(sm.hidden), y[m] + size_t(r0) * size_t(sm.out));
+        const int m = int(item) / chunks;
+        fwd_chunk(*s[m], batch, chunks, int(item) % chunks, x, p[m], hidden[m], y[m]);
       }
     };
     run(size_t(count) * size_t(chunks), body);
@@ -105,25 +93,12 @@ class FloatBackend {
   void mlp_bwd(const simd::MlpShape& s, int32_t batch, const float* x, const float* p, const float* hidden,
                const float* y, const float* v_y, float* v_x, float* v_p) {
     const int chunks = chunk_count(batch);
-    const size_t np = Mlp::param_count(s);
     auto body = [&](size_t b, size_t e, int) {
-      for (size_t c = b; c < e; ++c) {
-        int32_t r0, r1;
-        chunk_rows(batch, chunks, int(c), &r0, &r1);
-        float* g = chunk_grads_.data() + c * max_mlp_params_;
-        std::fill(g, g + np, 0.0f);
-        if (r1 <= r0) continue;
-        kt_->mlp_bwd(&s, r1 - r0, x + size_t(r0) * size_t(s.in), p, p + Mlp::off_b1(s), p + Mlp::off_W2(s),
-                     p + Mlp::off_b2(s), hidden + size_t(r0) * size_t(s.hidden), y + size_t(r0) * size_t(s.out),
-                     v_y + size_t(r0) * size_t(s.out), v_x ? v_x + size_t(r0) * size_t(s.in) : nullptr, g,
-                     g + Mlp::off_b1(s), g + Mlp::off_W2(s), g + Mlp::off_b2(s));
-      }
+      for (size_t c = b; c < e; ++c)
+        bwd_chunk(s, batch, chunks, int(c), x, p, hidden, y, v_y, v_x, chunk_grads_.data() + c * max_mlp_params_);
     };
     run(size_t(chunks), body);
-    for (int c = 0; c < chunks; ++c) {  // fixed-order reduction
-      const float* g = chunk_grads_.data() + size_t(c) * max_mlp_params_;
-      for (size_t i = 0; i < np; ++i) v_p[i] += g[i];
-    }
+    sum_chunk_grads(Mlp::param_count(s), chunks, 0, v_p);
   }
 
   // The three decoder MLPs backward on the same rows x, as mlp_bwd(m = 0), mlp_bwd(1) into v_tmp,
@@ -136,24 +111,9 @@ class FloatBackend {
     const int chunks = chunk_count(batch);
     const size_t in = size_t(s[0]->in);
     auto chunk_bwd = [&](int m, int c, float* v_out, float* g) {
-      const simd::MlpShape& sm = *s[m];
-      const float* pm = p[m];
-      std::fill(g, g + Mlp::param_count(sm), 0.0f);
-      int32_t r0, r1;
-      chunk_rows(batch, chunks, c, &r0, &r1);
-      if (r1 <= r0) return;
-      kt_->mlp_bwd(&sm, r1 - r0, x + size_t(r0) * in, pm, pm + Mlp::off_b1(sm), pm + Mlp::off_W2(sm),
-                   pm + Mlp::off_b2(sm), hidden[m] + size_t(r0) * size_t(sm.hidden), y[m] + size_t(r0) * size_t(sm.out),
-                   v_y[m] + size_t(r0) * size_t(sm.out), v_out + size_t(r0) * in, g, g + Mlp::off_b1(sm),
-                   g + Mlp::off_W2(sm), g + Mlp::off_b2(sm));
+      bwd_chunk(*s[m], batch, chunks, c, x, p[m], hidden[m], y[m], v_y[m], v_out, g);
     };
-    auto sum_chunks = [&](int m, size_t first) {  // fixed-order reduction, as mlp_bwd
-      const size_t np = Mlp::param_count(*s[m]);
-      for (int c = 0; c < chunks; ++c) {
-        const float* g = chunk_grads_.data() + (first + size_t(c)) * max_mlp_params_;
-        for (size_t i = 0; i < np; ++i) v_p[m][i] += g[i];
-      }
-    };
+    auto sum_chunks = [&](int m, size_t first) { sum_chunk_grads(Mlp::param_count(*s[m]), chunks, first, v_p[m]); };
     auto add_rows = [&](int c) {
       int32_t r0, r1;
       chunk_rows(batch, chunks, c, &r0, &r1);
@@ -270,6 +230,36 @@ class FloatBackend {
   static void chunk_rows(int32_t batch, int chunks, int c, int32_t* r0, int32_t* r1) {
     *r0 = int32_t(int64_t(batch) * c / chunks);
     *r1 = int32_t(int64_t(batch) * (c + 1) / chunks);
+  }
+  // One fixed chunk of rows of an MLP forward (x: batch x in, hidden: batch x hidden, y: batch x out).
+  void fwd_chunk(const simd::MlpShape& s, int32_t batch, int chunks, int c, const float* x, const float* p,
+                 float* hidden, float* y) const {
+    int32_t r0, r1;
+    chunk_rows(batch, chunks, c, &r0, &r1);
+    if (r1 > r0)
+      kt_->mlp_fwd(&s, r1 - r0, x + size_t(r0) * size_t(s.in), p, p + Mlp::off_b1(s), p + Mlp::off_W2(s),
+                   p + Mlp::off_b2(s), hidden + size_t(r0) * size_t(s.hidden), y + size_t(r0) * size_t(s.out));
+  }
+  // One fixed chunk of rows of an MLP backward: the chunk's parameter gradient into g (zeroed first,
+  // param_count(s) floats), its input-gradient rows into v_x (nullptr: not wanted).
+  void bwd_chunk(const simd::MlpShape& s, int32_t batch, int chunks, int c, const float* x, const float* p,
+                 const float* hidden, const float* y, const float* v_y, float* v_x, float* g) const {
+    std::fill(g, g + Mlp::param_count(s), 0.0f);
+    int32_t r0, r1;
+    chunk_rows(batch, chunks, c, &r0, &r1);
+    if (r1 <= r0) return;
+    kt_->mlp_bwd(&s, r1 - r0, x + size_t(r0) * size_t(s.in), p, p + Mlp::off_b1(s), p + Mlp::off_W2(s),
+                 p + Mlp::off_b2(s), hidden + size_t(r0) * size_t(s.hidden), y + size_t(r0) * size_t(s.out),
+                 v_y + size_t(r0) * size_t(s.out), v_x ? v_x + size_t(r0) * size_t(s.in) : nullptr, g,
+                 g + Mlp::off_b1(s), g + Mlp::off_W2(s), g + Mlp::off_b2(s));
+  }
+  // v_p += the per-chunk gradients chunk_grads_[first .. first + chunks), in a fixed order (the sum
+  // does not depend on the thread count).
+  void sum_chunk_grads(size_t np, int chunks, size_t first, float* v_p) const {
+    for (int c = 0; c < chunks; ++c) {
+      const float* g = chunk_grads_.data() + (first + size_t(c)) * max_mlp_params_;
+      for (size_t i = 0; i < np; ++i) v_p[i] += g[i];
+    }
   }
   template <class F>
   void run(size_t n, F& body) {
