@@ -18,18 +18,9 @@ threads=${HBGS_ABLATION_THREADS:-2}
 budget=${HBGS_ABLATION_BUDGET:-}
 seeds=(0 1)
 modes=(none paper visible)
-cmake --preset release >/dev/null
-cmake --build --preset release -j"${GS_JOBS:-2}" --target hbgs
-hbgs=$(realpath build/release/bin/hbgs)
+source scripts/real-scenes.sh  # hbgs, scenes, lpips
 mkdir -p "$out/runs"
 out=$(realpath "$out")
-scenes=()
-for d in "$data"/*/; do
-  [[ -f "$d/sparse/0/points3D.txt" || -f "$d/sparse/0/points3D.bin" ]] && scenes+=("$(basename "$d")")
-done
-[[ ${#scenes[@]} -gt 0 ]] || { echo "ablation: no COLMAP scene in $data" >&2; exit 1; }
-lpips=()
-[[ -d "$data/lpips_alex" ]] && lpips=(--lpips-weights "$data/lpips_alex")
 settings=("it$iterations")
 [[ -n "$budget" ]] && settings+=("budget$budget")
 total=$(( ${#scenes[@]} * ${#seeds[@]} * ${#modes[@]} * ${#settings[@]} ))
