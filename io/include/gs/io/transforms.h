@@ -118,4 +118,24 @@ struct RandomPoints {
 Expected<RandomPoints> random_points_in_common_view(const std::vector<Camera>& cameras, size_t count, uint64_t seed,
                                                     float near = 0.2f);
 
+// Initial points from the views' masks (an RGBA image's alpha or masks/): the visual hull. The
+// region the views' cameras share (as above) is cut into cubic voxels, 128 along its longest side;
+// a voxel stays when enough cameras see it (as above) and at most 1 in 20 of them (rounded down)
+// sees its centre outside the mask dilated by one pixel; `count` points are drawn uniformly (seeded
+// SplitMix64) in the voxels of the hull's surface (kept voxels with a face neighbour that is not),
+// each coloured with the mean of the pixels it projects to inside the masks (occlusion ignored).
+// For an object capture this puts the points where the object is, as structure from motion would,
+// instead of throughout the box. Errors: a view without a mask or image of its camera's size, no
+// common region, or masks that carve everything away.
+struct CarvedPoints {
+  std::vector<float> xyz;    // [count, 3]
+  std::vector<uint8_t> rgb;  // [count, 3]
+  float box_min[3] = {0, 0, 0}, box_max[3] = {0, 0, 0};  // the carved region, world units
+  double voxel = 0;            // voxel side, world units
+  int grid[3] = {0, 0, 0};     // voxels along x, y, z
+  size_t surface_voxels = 0;   // voxels the points were drawn in
+};
+Expected<CarvedPoints> carve_points_from_masks(const std::vector<const DatasetView*>& views, size_t count, uint64_t seed,
+                                               float near = 0.2f);
+
 }  // namespace gs::io
