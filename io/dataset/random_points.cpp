@@ -6,6 +6,8 @@
 // keeps points out of space no training view constrains.
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <string>
 
 #include "../io_util.h"
 #include "gs/io/transforms.h"
@@ -21,6 +23,10 @@ constexpr size_t kMinPassingProbes = kProbes / 500;
 // voxel which may see it outside their mask (1 in kMissFraction, rounded down) before it is carved.
 constexpr int kCarveResolution = 128;
 constexpr size_t kMissFraction = 20;
+// Photo-consistency of a carved point: the neighbouring views (within this angle) and the colour
+// tolerance (8-bit levels, mean over the channels).
+constexpr double kNeighbourDegrees = 45.0;
+constexpr int kColourTolerance = 16;
 
 struct CameraRays {
   double R[9], t[3], centre[3], axis[3];
@@ -213,6 +219,33 @@ long pixel_of(const CameraRays& c, const double X[3], double near) {
   return long(v) * long(c.width) + long(u);
 }
 
+// Whether the views near view c (their cameras within kNeighbourDegrees of c's, seen from X) that
+// see X inside their masks mostly see c's colour there: at least half of them, and at least two,
+// within kColourTolerance (mean absolute difference over the channels, 8-bit levels). A point on
+// the surface c sees passes unless most neighbours see it occluded; a point of the hull in front
+// of that surface (empty space the masks cannot carve) projects onto other surfaces in other views.
+bool photo_consistent(const std::vector<const DatasetView*>& views, const std::vector<CameraRays>& cams, size_t c,
+                      const uint8_t colour[3], const double X[3], double near) {
+  double to_c[3], nc = 0;
+  for (int i = 0; i < 3; ++i) to_c[i] = cams[c].centre[i] - X[i], nc += to_c[i] * to_c[i];
+  nc = std::sqrt(nc);
+  const double min_cos = std::cos(kNeighbourDegrees * 3.14159265358979323846 / 180.0);
+  size_t near_views = 0, agree = 0;
+  for (size_t j = 0; j < cams.size(); ++j) {
+    if (j == c) continue;
+    double to_j[3], nj = 0, dot = 0;
+    for (int i = 0; i < 3; ++i) to_j[i] = cams[j].centre[i] - X[i], nj += to_j[i] * to_j[i], dot += to_j[i] * to_c[i];
+    if (!(dot >= min_cos * nc * std::sqrt(nj))) continue;
+    const long px = pixel_of(cams[j], X, near);
+    if (px < 0 || views[j]->mask.pixels[size_t(px)] < 128) continue;
+    ++near_views;
+    const uint8_t* q = &views[j]->image.pixels[3 * size_t(px)];
+    const int diff = std::abs(int(q[0]) - int(colour[0])) + std::abs(int(q[1]) - int(colour[1])) + std::abs(int(q[2]) - int(colour[2]));
+    agree += diff <= 3 * kColourTolerance ? 1 : 0;
+  }
+  return agree >= 2 && 2 * agree >= near_views;
+}
+
 Expected<CarvedPoints> carve(const std::vector<const DatasetView*>& views, size_t count, uint64_t seed, float near) {
   if (views.empty()) return invalid_argument("carved points: no views");
   if (count == 0) return invalid_argument("carved points: count must be at least 1");
@@ -258,45 +291,80 @@ Expected<CarvedPoints> carve(const std::vector<const DatasetView*>& views, size_
         kept[(size_t(z) * size_t(n[1]) + size_t(y)) * size_t(n[0]) + size_t(x)] =
             seen >= region.needed && misses <= seen / kMissFraction ? 1 : 0;
       }
-  // The hull's surface: kept voxels with a face neighbour that is not kept (or the grid's edge).
-  auto at = [&](int x, int y, int z) {
-    if (x < 0 || y < 0 || z < 0 || x >= n[0] || y >= n[1] || z >= n[2]) return uint8_t(0);
-    return kept[(size_t(z) * size_t(n[1]) + size_t(y)) * size_t(n[0]) + size_t(x)];
+  auto kept_at = [&](const double X[3]) {
+    size_t cell = 0;
+    for (int i = 2; i >= 0; --i) {
+      const double g = std::floor((X[i] - region.lo[i]) / voxel);
+      if (!(g >= 0 && g < n[i])) return false;
+      cell = cell * size_t(n[i]) + size_t(g);
+    }
+    return kept[cell] != 0;
   };
-  std::vector<uint32_t> surface;
-  for (int z = 0; z < n[2]; ++z)
-    for (int y = 0; y < n[1]; ++y)
-      for (int x = 0; x < n[0]; ++x) {
-        if (!at(x, y, z)) continue;
-        if (at(x - 1, y, z) && at(x + 1, y, z) && at(x, y - 1, z) && at(x, y + 1, z) && at(x, y, z - 1) && at(x, y, z + 1)) continue;
-        surface.push_back(uint32_t((size_t(z) * size_t(n[1]) + size_t(y)) * size_t(n[0]) + size_t(x)));
-      }
-  if (surface.empty())
+  std::vector<std::vector<uint32_t>> mask_pixels(views.size());
+  size_t hull_voxels = size_t(std::count(kept.begin(), kept.end(), uint8_t(1)));
+  for (size_t c = 0; c < views.size(); ++c)
+    for (size_t px = 0; px < views[c]->mask.pixels.size(); ++px)
+      if (views[c]->mask.pixels[px] >= 128) mask_pixels[c].push_back(uint32_t(px));
+  if (hull_voxels == 0)
     return invalid_argument("carved points: the masks of the " + std::to_string(views.size()) +
                             " views leave nothing of the region the cameras share (do the masks cover the subject?)");
   CarvedPoints out;
   out.voxel = voxel;
-  out.surface_voxels = surface.size();
+  out.hull_voxels = hull_voxels;
   for (int i = 0; i < 3; ++i) out.grid[i] = n[i], out.box_min[i] = float(region.lo[i]), out.box_max[i] = float(region.hi[i]);
   out.xyz.reserve(3 * count);
   out.rgb.reserve(3 * count);
-  for (size_t p = 0; p < count; ++p) {
-    const uint32_t cell = surface[size_t(rng.next() % surface.size())];
-    const int x = int(cell % uint32_t(n[0])), y = int(cell / uint32_t(n[0]) % uint32_t(n[1])), z = int(cell / (uint32_t(n[0]) * uint32_t(n[1])));
-    double X[3] = {region.lo[0] + (x + rng.uniform()) * voxel, region.lo[1] + (y + rng.uniform()) * voxel,
-                   region.lo[2] + (z + rng.uniform()) * voxel};
-    // Colour: the mean over the views that see the point inside their mask (occlusion ignored).
-    double sum[3] = {0, 0, 0};
-    size_t k = 0;
-    for (size_t c = 0; c < cams.size(); ++c) {
-      const long px = pixel_of(cams[c], X, near);
-      if (px < 0 || views[c]->mask.pixels[size_t(px)] < 128) continue;
-      for (int ch = 0; ch < 3; ++ch) sum[ch] += views[c]->image.pixels[3 * size_t(px) + size_t(ch)];
-      ++k;
+  // Each point: a random training view, a random point of a random pixel inside its mask, and the
+  // ray from the camera through it marched in half-voxel steps (from a random phase) to where it
+  // first enters the hull: the part of the hull the views see, coloured by that pixel.
+  const uint64_t max_rays = 100 * uint64_t(count) + 1000;
+  for (uint64_t ray = 0; out.xyz.size() < 3 * count && ray < max_rays; ++ray) {
+    const size_t c = size_t(rng.next() % views.size());
+    if (mask_pixels[c].empty()) continue;
+    const uint32_t px = mask_pixels[c][size_t(rng.next() % mask_pixels[c].size())];
+    const CameraRays& cam = cams[c];
+    const uint32_t w = uint32_t(cam.width);
+    const double u = double(px % w) + rng.uniform(), v = double(px / w) + rng.uniform();
+    const double dc[3] = {(u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0};
+    double d[3];
+    for (int i = 0; i < 3; ++i) d[i] = cam.R[i] * dc[0] + cam.R[3 + i] * dc[1] + cam.R[6 + i] * dc[2];  // R^T dc
+    // The ray's stretch inside the region's box (slab test), beyond the near plane.
+    double t0 = near, t1 = 1e300;
+    for (int i = 0; i < 3 && t1 > t0; ++i) {
+      if (std::fabs(d[i]) < 1e-12) {
+        if (cam.centre[i] < region.lo[i] || cam.centre[i] > region.hi[i]) t1 = -1;
+        continue;
+      }
+      double a = (region.lo[i] - cam.centre[i]) / d[i], b = (region.hi[i] - cam.centre[i]) / d[i];
+      if (a > b) std::swap(a, b);
+      t0 = std::max(t0, a), t1 = std::min(t1, b);
     }
-    for (int i = 0; i < 3; ++i) out.xyz.push_back(float(X[i]));
-    for (int ch = 0; ch < 3; ++ch) out.rgb.push_back(k ? uint8_t(std::lround(sum[ch] / double(k))) : uint8_t(128));
+    const double step = 0.5 * voxel / std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const uint8_t* colour = &views[c]->image.pixels[3 * size_t(px)];
+    // Along the ray inside the hull, the first depth whose colour the neighbouring views agree
+    // with (photo-consistency); when none does, where the ray enters the hull.
+    double entry = -1, found = -1;
+    for (double t = t0 + step * rng.uniform(); t < t1; t += step) {
+      const double X[3] = {cam.centre[0] + t * d[0], cam.centre[1] + t * d[1], cam.centre[2] + t * d[2]};
+      if (!kept_at(X)) {
+        if (entry >= 0) break;  // left the hull
+        continue;
+      }
+      if (entry < 0) entry = t;
+      if (photo_consistent(views, cams, c, colour, X, near)) {
+        found = t;
+        break;
+      }
+    }
+    if (entry < 0) continue;
+    const double t = found >= 0 ? found : entry;
+    out.consistent += found >= 0 ? 1 : 0;
+    for (int i = 0; i < 3; ++i) out.xyz.push_back(float(cam.centre[i] + t * d[i]));
+    for (int ch = 0; ch < 3; ++ch) out.rgb.push_back(colour[ch]);
   }
+  if (out.xyz.size() < 3 * count)
+    return Status(StatusCode::kInternal, "carved points: only " + std::to_string(out.xyz.size() / 3) + " of " +
+                                             std::to_string(count) + " rays through the masks met the hull");
   return out;
 }
 

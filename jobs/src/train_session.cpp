@@ -21,13 +21,16 @@ Status no_sfm_pose_initializer() {
 // subject is: the points are replaced by as many drawn on the surface of the visual hull the
 // training masks carve (gs::io::carve_points_from_masks; the test views' masks are not used).
 // Measured on hbgs synth --object read from transforms_train.json (3,000 iterations, docs/MODEL.md
-// "A start without SfM points"). --no-carve keeps the random points.
+// "A start without SfM points"). --no-carve-points keeps the random points.
 Status carve_points_if_masked(io::Dataset* dataset, const std::vector<const io::DatasetView*>& train_views,
                               const TrainRunOptions& options, const TrainProgressFn& say) {
   if (dataset->points_source != io::PointsSource::kRandom || !options.carve_points) return Status::Ok();
   for (const io::DatasetView* v : train_views)
     if (v->mask.empty()) return Status::Ok();
-  const size_t count = dataset->points_xyz.size() / 3;
+  // Twice the random points: the carved ones lie on surfaces, so the automatic voxel size is finer
+  // and more of them survive as anchors. Measured at 3,000 iterations on the synthetic object (SfM
+  // start 34.43 dB): 5,000 carved points 33.09 dB, 10,000 33.93, 20,000 34.62.
+  const size_t count = 2 * (dataset->points_xyz.size() / 3);
   Expected<io::CarvedPoints> carved = io::carve_points_from_masks(train_views, count, options.seed + 1);
   if (!carved.ok()) {
     say(text_event(TrainEvent::kNote, carved.status().message() + "; training starts from the random points"));
@@ -36,11 +39,13 @@ Status carve_points_if_masked(io::Dataset* dataset, const std::vector<const io::
   dataset->points_xyz = std::move(carved->xyz);
   dataset->points_rgb = std::move(carved->rgb);
   dataset->points_source = io::PointsSource::kCarved;
-  say(text_event(TrainEvent::kNote, std::to_string(count) + " initial points carved from the masks of the " +
+  say(text_event(TrainEvent::kNote, std::to_string(count) + " initial points (instead of " + std::to_string(count / 2) +
+                                        " random ones) carved from the masks of the " +
                                         std::to_string(train_views.size()) + " training views (" +
-                                        std::to_string(carved->surface_voxels) + " hull surface voxels of " +
+                                        std::to_string(carved->hull_voxels) + " hull voxels of " +
                                         std::to_string(carved->grid[0]) + "x" + std::to_string(carved->grid[1]) + "x" +
-                                        std::to_string(carved->grid[2]) + ")"));
+                                        std::to_string(carved->grid[2]) + "; " + std::to_string(carved->consistent) +
+                                        " at a photo-consistent depth)"));
   return Status::Ok();
 }
 
@@ -72,9 +77,6 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
   if (!data.ok()) return data.status();
   d.dataset = std::move((*data)->dataset);
   GS_RETURN_IF_ERROR(apply_pose_noise(&d.dataset, options.pose_noise, options.pose_noise_on, &d.truth));
-  const size_t npoints = d.dataset.points_xyz.size() / 3;
-  if (npoints == 0)
-    return invalid_argument(options.dataset + ": the dataset has no SfM points (sparse/0/points3D); training places its anchors on them");
   std::vector<const Camera*> train_cameras;
   for (size_t i = 0; i < d.dataset.views.size(); ++i) {
     const io::DatasetView& v = d.dataset.views[i];
@@ -87,6 +89,9 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
   }
   if (d.train_views.empty()) return invalid_argument(options.dataset + ": no training views (every view is a test view)");
   GS_RETURN_IF_ERROR(carve_points_if_masked(&d.dataset, d.train_views, options, say));
+  const size_t npoints = d.dataset.points_xyz.size() / 3;
+  if (npoints == 0)
+    return invalid_argument(options.dataset + ": the dataset has no SfM points (sparse/0/points3D); training places its anchors on them");
 
   std::vector<Pose> input;
   for (const io::DatasetView* v : d.train_views) input.push_back(v->camera.pose);
