@@ -129,6 +129,13 @@ Expected<EvalResult> evaluate_with(const std::vector<const io::DatasetView*>& vi
     m.render_ms = 1e3 * (platform::now_seconds() - t0);
     render_ms.push_back(m.render_ms);
     const int w = v->camera.intr.width, h = v->camera.intr.height;
+    if (options.composite_renders && !v->mask.empty()) {
+      const float* bg = options.render.background;
+      for (size_t p = 0; p < size_t(w) * size_t(h); ++p) {
+        const float m = float(v->mask.pixels[p]) * (1.0f / 255.0f);
+        for (size_t c = 0; c < 3; ++c) rgb[3 * p + c] = rgb[3 * p + c] * m + bg[c] * (1.0f - m);
+      }
+    }
     const io::Image8 img = io::image_from_float_rgb(rgb.data(), w, h);  // clamps to [0, 1], rounds
     const io::Image8 composited = io::composite_rgb8(v->image, v->mask, options.render.background);
     const uint8_t* gt = composited.pixels.data();

@@ -54,6 +54,9 @@ Command add_eval_command(CLI::App& parent) {
                   "Background to render on and composite masked views on: black, white or r,g,b (default: the run's "
                   "training background)")
       ->check(background_validator());
+  sub->add_flag("--composite-renders", o->composite_renders,
+                "Composite each render through its view's mask on the background before the metrics, as the photo is "
+                "(a model trained on the whole photos, judged inside the masks of a masked dataset given by --dataset)");
   sub->add_flag("--fixed-point", o->fixed_point, "Render with the on-device fixed-point blending (int16 tile kernel)");
   sub->add_flag("-q,--quiet", args->quiet, "Only the summary");
   return {sub, [args] { return run_eval(*args); }};

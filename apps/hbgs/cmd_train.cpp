@@ -218,6 +218,9 @@ Command add_train_command(CLI::App& parent) {
       ->capture_default_str()
       ->check(CLI::IsMember({"train", "test", "all"}));
   sub->add_flag("--optimize-poses", o->optimize_poses, "Optimise the training poses jointly with the scene (saved to refined_poses/ as COLMAP text and transforms.json)");
+  sub->add_flag("!--no-carve-points", o->carve_points,
+                "A dataset without a point cloud whose training views all have masks (alpha or masks/) starts from "
+                "random points in the cameras' common view, not from points carved from the masks (the visual hull)");
   sub->add_flag("!--no-point-align", o->point_align,
                 "With --optimize-poses: skip the photometric alignment of the poses to the SfM points before training");
   sub->add_option("--pose-init", o->pose_init,

@@ -668,6 +668,7 @@ const char* points_source_name(PointsSource source) {
     case PointsSource::kSfm: return "sfm";
     case PointsSource::kPly: return "ply";
     case PointsSource::kRandom: return "random";
+    case PointsSource::kCarved: return "carved";
   }
   return "?";
 }

@@ -44,6 +44,7 @@ Status evaluate_run(const EvaluateRunOptions& a, EvaluateRunSummary* summary) {
   std::copy(background->rgb, background->rgb + 3, eo.render.background);
   eo.lpips = lpips->get();
   eo.render.fixed_point_raster = a.fixed_point;
+  eo.composite_renders = a.composite_renders;
   if (a.fixed_point) eo.render.int8_mlp = loaded->compact.get();  // int8 MLPs when the file is compact
   if (a.renders) eo.render_dir = s.render_dir = (fs::path(s.out_dir) / a.split / a.method / "renders").string();
   const double t0 = platform::now_seconds();

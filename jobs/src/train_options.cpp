@@ -52,6 +52,8 @@ void for_each_recorded_option(TrainRunOptions* a, Visit&& visit) {
   visit("eval-every", &a->eval_every, false);
   visit("save-at", &a->save_at, false);
   visit("lpips-weights", &a->lpips_weights, false);
+  // Only the start of a run (a resume starts from its checkpoint), so not a model option.
+  visit("carve-points", &a->carve_points, false);
 }
 
 }  // namespace
@@ -175,7 +177,7 @@ std::string run_json(const TrainRunOptions& a) {
                   {"feature-refresh", a.feature_refresh},
                   {"pose-lr", a.pose_lr},               {"point-align", a.point_align},
                   {"register-passes", a.register_passes}, {"pose-init", a.pose_init},
-                  {"sfm-images", a.sfm_images}};
+                  {"sfm-images", a.sfm_images},         {"carve-points", a.carve_points}};
   return j.dump(2) + "\n";
 }
 

@@ -570,3 +570,102 @@ TEST_CASE("transforms.json: instant-ngp's fox poses agree with the COLMAP model 
 
 }  // namespace
 }  // namespace gs::io
+
+namespace gs::io {
+namespace {
+
+// A sphere of centre C and radius r seen by a camera: its mask and its image, a red and blue 3D
+// checker of cells 0.15 wide (texture lets photo-consistency find the surface), ray-traced per pixel
+// centre here, independently of the library.
+bool red_cell(Vec X) {
+  const long k = long(std::floor(X.x / 0.15)) + long(std::floor(X.y / 0.15)) + long(std::floor(X.z / 0.15));
+  return (k % 2 + 2) % 2 == 0;
+}
+DatasetView sphere_view(const Camera& cam, Vec C, double r, const std::string& name) {
+  const PinholeIntrinsics& K = cam.intr;
+  DatasetView v;
+  v.name = name;
+  v.camera = cam;
+  v.image = Image8{K.width, K.height, 3, std::vector<uint8_t>(size_t(K.width) * size_t(K.height) * 3, 255)};
+  v.mask = Image8{K.width, K.height, 1, std::vector<uint8_t>(size_t(K.width) * size_t(K.height), 0)};
+  const Pose& p = cam.pose;
+  Vec O;  // camera centre -R^T t
+  O.x = -(p.R[0] * p.t[0] + p.R[3] * p.t[1] + p.R[6] * p.t[2]);
+  O.y = -(p.R[1] * p.t[0] + p.R[4] * p.t[1] + p.R[7] * p.t[2]);
+  O.z = -(p.R[2] * p.t[0] + p.R[5] * p.t[1] + p.R[8] * p.t[2]);
+  for (int y = 0; y < K.height; ++y)
+    for (int x = 0; x < K.width; ++x) {
+      const double dc[3] = {(x + 0.5 - K.cx) / K.fx, (y + 0.5 - K.cy) / K.fy, 1.0};
+      const Vec d = unit({p.R[0] * dc[0] + p.R[3] * dc[1] + p.R[6] * dc[2], p.R[1] * dc[0] + p.R[4] * dc[1] + p.R[7] * dc[2],
+                          p.R[2] * dc[0] + p.R[5] * dc[1] + p.R[8] * dc[2]});
+      const Vec oc = sub(O, C);
+      const double b = oc.x * d.x + oc.y * d.y + oc.z * d.z, c = oc.x * oc.x + oc.y * oc.y + oc.z * oc.z - r * r;
+      const double disc = b * b - c;
+      if (disc < 0) continue;
+      const double t = -b - std::sqrt(disc);
+      const bool red = red_cell({O.x + t * d.x, O.y + t * d.y, O.z + t * d.z});
+      const size_t px = size_t(y) * size_t(K.width) + size_t(x);
+      v.mask.pixels[px] = 255;
+      const uint8_t rgb[3] = {uint8_t(red ? 200 : 40), 40, uint8_t(red ? 40 : 200)};
+      for (int ch = 0; ch < 3; ++ch) v.image.pixels[3 * px + size_t(ch)] = rgb[ch];
+    }
+  return v;
+}
+
+TEST_CASE("carve_points_from_masks: points on the surface the views see, coloured by it, seeded; errors") {
+  const PinholeIntrinsics K{60, 60, 32, 24, 64, 48};
+  const Vec C{0, 0, 0.3};
+  const double r = 0.6;
+  std::vector<DatasetView> views;
+  for (double height : {1.0, 3.0})
+    for (int i = 0; i < 12; ++i) {
+      const Vec eye = ring_eye(i, 12, 5.0, height);
+      TransformsFile f;
+      REQUIRE(parse("{\"frames\": [{\"file_path\": \"a\", \"transform_matrix\": " + gl_matrix(eye, C) + "}]}", &f).ok());
+      double q[4], t[3];
+      REQUIRE(pose_from_transform_matrix(f.frames[0].transform_matrix, q, t).empty());
+      views.push_back(sphere_view({K, pose_from_colmap(q, t)}, C, r, "v" + std::to_string(views.size())));
+    }
+  std::vector<const DatasetView*> ptrs;
+  for (const DatasetView& v : views) ptrs.push_back(&v);
+  auto carved = carve_points_from_masks(ptrs, 2000, 3);
+  REQUIRE_MESSAGE(carved.ok(), carved.status().to_string());
+  REQUIRE(carved->xyz.size() == 6000);
+  REQUIRE(carved->rgb.size() == 6000);
+  CHECK(carved->voxel > 0);
+  CHECK(carved->hull_voxels > 0);
+  // Near the sphere (the hull is larger: a finite set of silhouettes, the one-pixel dilation; the
+  // photo-consistent depth brings the points back to the surface the views see).
+  size_t near_surface = 0;
+  for (size_t p = 0; p < 2000; ++p) {
+    const Vec d = sub({carved->xyz[3 * p], carved->xyz[3 * p + 1], carved->xyz[3 * p + 2]}, C);
+    near_surface += std::fabs(std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z) - r) <= 2 * carved->voxel ? 1 : 0;
+  }
+  MESSAGE("carved: voxel " << carved->voxel << ", " << near_surface << " of 2000 within two voxels of the sphere, "
+                           << carved->consistent << " at a photo-consistent depth");
+  // Measured: 1,245 within two voxels and 1,951 at a photo-consistent depth (a two-colour checker
+  // lets some depths in front of the surface agree by chance). Points drawn in the region's box
+  // would put about 5 % there.
+  CHECK(near_surface >= 1100);
+  CHECK(carved->consistent >= 1500);
+  auto again = carve_points_from_masks(ptrs, 2000, 3), other = carve_points_from_masks(ptrs, 2000, 4);
+  REQUIRE(again.ok());
+  REQUIRE(other.ok());
+  CHECK(again->xyz == carved->xyz);
+  CHECK(other->xyz != carved->xyz);
+  // Errors: a view without a mask; masks that carve everything away.
+  std::vector<DatasetView> unmasked = views;
+  unmasked[3].mask = Image8{};
+  std::vector<const DatasetView*> uptr;
+  for (const DatasetView& v : unmasked) uptr.push_back(&v);
+  check_error(carve_points_from_masks(uptr, 100, 1).status(), {"has no mask"});
+  std::vector<DatasetView> empty = views;
+  for (DatasetView& v : empty) std::fill(v.mask.pixels.begin(), v.mask.pixels.end(), uint8_t(0));
+  std::vector<const DatasetView*> eptr;
+  for (const DatasetView& v : empty) eptr.push_back(&v);
+  check_error(carve_points_from_masks(eptr, 100, 1).status(), {"leave nothing"});
+  check_error(carve_points_from_masks({}, 100, 1).status(), {"no views"});
+}
+
+}  // namespace
+}  // namespace gs::io

@@ -91,8 +91,10 @@ enum class PointsSource {
   kSfm,     // the COLMAP model's points3D
   kPly,     // a transforms file's "ply_file_path" point cloud
   kRandom,  // drawn by load_dataset (random_points_in_common_view, gs/io/transforms.h)
+  kCarved,  // the training job's replacement of random points when every training view has a mask
+            // (carve_points_from_masks, gs/io/transforms.h)
 };
-const char* points_source_name(PointsSource source);  // "none", "sfm", "ply", "random"
+const char* points_source_name(PointsSource source);  // "none", "sfm", "ply", "random", "carved"
 
 struct DatasetOptions {
   std::string images_dir = "images";  // relative to the dataset root (COLMAP layout)

@@ -118,4 +118,25 @@ struct RandomPoints {
 Expected<RandomPoints> random_points_in_common_view(const std::vector<Camera>& cameras, size_t count, uint64_t seed,
                                                     float near = 0.2f);
 
+// Initial points from the views' masks (an RGBA image's alpha or masks/): the visual hull as the
+// views see it. The region the views' cameras share (as above) is cut into cubic voxels, 128 along
+// its longest side; a voxel stays in the hull when enough cameras see it (as above) and at most 1 in
+// 20 of them (rounded down) sees its centre outside the mask dilated by one pixel. Each of the
+// `count` points is where the ray through a random point of a random mask pixel (>= 128) of a
+// random view first enters the hull (marched in half-voxel steps; seeded SplitMix64), coloured by
+// that pixel: for an object capture, points on the surfaces the cameras see, as structure from
+// motion gives them, instead of throughout the box (or on hull faces no view sees). Errors: a view
+// without a mask or image of its camera's size, no common region, masks that carve everything away.
+struct CarvedPoints {
+  std::vector<float> xyz;    // [count, 3]
+  std::vector<uint8_t> rgb;  // [count, 3]
+  float box_min[3] = {0, 0, 0}, box_max[3] = {0, 0, 0};  // the carved region, world units
+  double voxel = 0;            // voxel side, world units
+  int grid[3] = {0, 0, 0};     // voxels along x, y, z
+  size_t hull_voxels = 0;      // voxels of the hull
+  size_t consistent = 0;       // points at a photo-consistent depth (the others: where the ray enters the hull)
+};
+Expected<CarvedPoints> carve_points_from_masks(const std::vector<const DatasetView*>& views, size_t count, uint64_t seed,
+                                               float near = 0.2f);
+
 }  // namespace gs::io

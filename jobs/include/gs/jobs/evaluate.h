@@ -25,6 +25,7 @@ struct EvaluateRunOptions {
   bool renders = false;         // also write <out>/<split>/<method>/renders/*.png
   bool fixed_point = false;     // the on-device path: fixed-point blending (RenderOptions::fixed_point)
   std::string background;       // black, white or r,g,b ("" : the run's training background)
+  bool composite_renders = false;  // renders composited through the views' masks (model::EvalOptions)
 };
 
 struct EvaluateRunSummary {

@@ -63,6 +63,9 @@ struct TrainRunOptions {
   // budget; model::TrainOptions::growth_gaussians_per_pixel).
   double gaussians_per_pixel = 0;
   float voxel_size = 0.0f;  // anchor voxel size in world units (0: automatic)
+  // A dataset without a point cloud whose training views all have masks starts from points carved
+  // from the masks (gs::io::carve_points_from_masks) instead of its random points; false: random.
+  bool carve_points = true;
   int offsets = 10;         // neural Gaussians (offsets) per anchor, k
   int feature_dim = 32;     // learned anchor feature width
   uint64_t seed = 0;        // MLP initialisation and view order

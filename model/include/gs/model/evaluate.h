@@ -47,6 +47,10 @@ struct EvalOptions {
   std::string render_dir;                     // non-empty: write <dir>/<view stem>.png (atomic)
   bool psnr_only = false;                     // quick evaluation during training (no SSIM / LPIPS / PNG)
   ModelRenderOptions render;                  // e.g. the fixed-point blending of the on-device path
+  // Masked views: the render is composited through the view's mask on the background before any
+  // metric (render * mask + background * (1 - mask)), as its photo is. For a model trained on the
+  // whole photos (no masks): its figures inside the mask then compare with those of a masked run.
+  bool composite_renders = false;
 };
 
 // The render file of each view: <dir>/<image name with .png>, sub-folders kept. Refused with a
