@@ -122,10 +122,12 @@ Expected<RandomPoints> random_points_in_common_view(const std::vector<Camera>& c
 // views see it. The region the views' cameras share (as above) is cut into cubic voxels, 128 along
 // its longest side; a voxel stays in the hull when enough cameras see it (as above) and at most 1 in
 // 20 of them (rounded down) sees its centre outside the mask dilated by one pixel. Each of the
-// `count` points is where the ray through a random point of a random mask pixel (>= 128) of a
-// random view first enters the hull (marched in half-voxel steps; seeded SplitMix64), coloured by
-// that pixel: for an object capture, points on the surfaces the cameras see, as structure from
-// motion gives them, instead of throughout the box (or on hull faces no view sees). Errors: a view
+// `count` points lies on the ray through a random point of a random mask pixel (>= 128) of a
+// random view (marched through the hull in half-voxel steps; seeded SplitMix64), at the first depth
+// whose colour most nearby views that see it inside their masks agree with (photo-consistency),
+// else where the ray enters the hull, and takes that pixel's colour: for an object capture, points
+// on the surfaces the cameras see, as structure from motion gives them, instead of throughout the
+// box (or on hull faces no view sees, where empty space the masks cannot carve remains). Errors: a view
 // without a mask or image of its camera's size, no common region, masks that carve everything away.
 struct CarvedPoints {
   std::vector<float> xyz;    // [count, 3]
