@@ -61,28 +61,24 @@ void pose_to_user(const SceneFrame& f, const Pose& pose, const double R[9], doub
   for (int i = 0; i < 3; ++i) t[i] = -(R[3 * i] * u[0] + R[3 * i + 1] * u[1] + R[3 * i + 2] * u[2]);
 }
 
-void cloud_to_frame(const SceneFrame& f, GaussianCloud* cloud) {
+namespace {
+
+// Means through point_to_frame or point_to_user, log-scales plus or minus log(scale).
+void move_cloud(const SceneFrame& f, bool to_frame, GaussianCloud* cloud) {
   if (f.identity()) return;
-  const float log_scale = float(std::log(f.scale));
   for (size_t i = 0; i < cloud->size(); ++i) {
-    double u[3], x[3];
-    for (int k = 0; k < 3; ++k) u[k] = cloud->means[3 * i + k];
-    point_to_frame(f, u, x);
-    for (int k = 0; k < 3; ++k) cloud->means[3 * i + k] = float(x[k]);
+    double a[3], b[3];
+    for (int k = 0; k < 3; ++k) a[k] = cloud->means[3 * i + size_t(k)];
+    (to_frame ? point_to_frame : point_to_user)(f, a, b);
+    for (int k = 0; k < 3; ++k) cloud->means[3 * i + size_t(k)] = float(b[k]);
   }
-  for (float& s : cloud->log_scales) s += log_scale;
+  const float log_scale = float(std::log(f.scale));
+  for (float& s : cloud->log_scales) s += to_frame ? log_scale : -log_scale;
 }
 
-void cloud_to_user(const SceneFrame& f, GaussianCloud* cloud) {
-  if (f.identity()) return;
-  const float log_scale = float(std::log(f.scale));
-  for (size_t i = 0; i < cloud->size(); ++i) {
-    double x[3], u[3];
-    for (int k = 0; k < 3; ++k) x[k] = cloud->means[3 * i + k];
-    point_to_user(f, x, u);
-    for (int k = 0; k < 3; ++k) cloud->means[3 * i + k] = float(u[k]);
-  }
-  for (float& s : cloud->log_scales) s -= log_scale;
-}
+}  // namespace
+
+void cloud_to_frame(const SceneFrame& f, GaussianCloud* cloud) { move_cloud(f, true, cloud); }
+void cloud_to_user(const SceneFrame& f, GaussianCloud* cloud) { move_cloud(f, false, cloud); }
 
 }  // namespace gs

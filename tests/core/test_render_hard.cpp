@@ -10,8 +10,9 @@
 //                 pixel by up to one splat's weight), and <= 0.05 everywhere;
 //   fixed point:  <= 3/255 for all but 0.5 %, mean <= 0.15/255, <= 0.05 everywhere (the int16
 //                 colours and alphas round to 1/255 and below; colours are clamped to [0, 1]).
-// Measured on x86 (ref, sse2, avx2, avx512): float worst 2.9e-6, no outliers; fixed point worst
-// 0.0075 (1.9/255), mean at most 3.2e-4 (0.08/255, the 1,000 faint layers).
+// Measured on x86 (ref, sse2, avx2, avx512) and neon64 under qemu-aarch64: float worst 2.9e-6, no
+// outliers; fixed point worst 0.0075 (1.9/255), mean at most 3.2e-4 (0.08/255, the 1,000 faint
+// layers). No case produced a non-finite value.
 #include <algorithm>
 #include <cmath>
 #include <cstring>

@@ -27,7 +27,7 @@ SceneFrame frame_of(const std::vector<double>& c) { return gs::choose_scene_fram
 
 }  // namespace
 
-TEST_CASE("scene frame: ordinary scenes keep the identity; far ones are recentred on a grid, odd scales rescaled by powers of ten") {
+TEST_CASE("scene frame: ordinary scenes keep the identity, far ones are recentred on a grid, odd scales rescaled by powers of ten") {
   // Ordinary: within half the grid of the origin, extent 0.5..64 (COLMAP models: 4.9 to 7.1).
   CHECK(frame_of(ring(0.1, -1.4, 2.6, 6)).identity());
   CHECK(frame_of(ring(3.0, 0, 0, 6)).identity());    // grid 8: 3 rounds to 0
