@@ -61,6 +61,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "register_image: %s\n", model.status().to_string().c_str());
     return 1;
   }
+  dataset_options.frame = model->frame;  // the dataset in the model's scene frame (gs/scene_frame.h)
   gs::Expected<gs::io::Dataset> dataset = gs::io::load_dataset(argv[2], dataset_options);
   if (!dataset.ok()) {
     std::fprintf(stderr, "register_image: %s\n", dataset.status().to_string().c_str());
@@ -95,7 +96,7 @@ int main(int argc, char** argv) {
       return 1;
     }
     double q[4], t[3];
-    gs::io::pose_to_colmap(result.pose, q, t);
+    gs::io::pose_to_colmap(model->frame, result.pose, q, t);  // in the dataset's own frame
     std::printf("%s: %s, pose (qw qx qy qz tx ty tz) %.5f %.5f %.5f %.5f %.4f %.4f %.4f, rotation error %.2f -> %.3f deg, "
                 "RMSE %.4f -> %.4f, %d iterations, %.0f ms\n",
                 view.name.c_str(), gs::pose::verdict_name(result.verdict), q[0], q[1], q[2], q[3], t[0], t[1], t[2],

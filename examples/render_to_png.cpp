@@ -113,6 +113,7 @@ int main(int argc, char** argv) {
       std::printf("%s: %s, %zu Gaussians, SH degree %d\n", source.c_str(), gs::io::splat_format_name(format), splats->size(),
                   splats->sh_degree);
       cloud = std::move(splats).value();
+      gs::cloud_to_frame(dataset->frame, &cloud);  // splat files are in the user's frame, the cameras in the scene frame
     }
     if (cloud.size() == 0) {
       std::fprintf(stderr, "render_to_png: %s: no Gaussians\n", source.c_str());

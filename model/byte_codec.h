@@ -150,4 +150,17 @@ inline void read_model_header(ByteReader* r, ModelConfig* c, float* voxel_size, 
   *scene_extent = r->f32("the scene extent");
 }
 
+// The scene frame (gs/scene_frame.h) as the model, compact and checkpoint files store it: the centre
+// and the scale as f64; read_scene_frame checks it.
+inline void write_scene_frame(ByteWriter* w, const SceneFrame& f) {
+  for (double c : f.centre) w->f64(c);
+  w->f64(f.scale);
+}
+inline bool read_scene_frame(ByteReader* r, SceneFrame* f) {
+  for (double& c : f->centre) c = r->f64("the scene frame");
+  f->scale = r->f64("the scene frame");
+  return r->status().ok() && *scene_frame_problem(*f) == 0;
+}
+inline constexpr size_t kSceneFrameBytes = 32;
+
 }  // namespace gs::model::detail

@@ -111,6 +111,8 @@ Status Trainer::load_checkpoint(const std::string& path) {
       a.image_feature_dim != b.image_feature_dim || a.image_feature_hidden != b.image_feature_hidden ||
       a.max_anchors != b.max_anchors || a.max_gaussians != b.max_gaussians)
     return invalid_argument(path + ": the checkpoint's model configuration differs from this run's");
+  if (model->frame != d.model.frame)
+    return invalid_argument(path + ": the checkpoint's scene frame differs from this run's (the dataset's cameras changed)");
   const uint64_t nviews = r.u64("the view count");
   if (r.status().ok() && nviews != d.views.size())
     return invalid_argument(path + ": the checkpoint was trained on " + std::to_string(nviews) +

@@ -25,6 +25,7 @@ HybridModel select_rows(const HybridModel& m, const std::vector<size_t>& keep) {
   o.config = m.config;
   o.voxel_size = m.voxel_size;
   o.scene_extent = m.scene_extent;
+  o.frame = m.frame;
   o.anchor_count = keep.size();
   for (int i = 0; i < kMlpCount; ++i) o.mlps[i] = m.mlps[i];
   const size_t K = size_t(m.config.k), F = size_t(m.config.feature_dim);
@@ -81,6 +82,7 @@ Expected<CompactModel> compact_from_model(const HybridModel& model, const std::v
   cm.config = c;
   cm.voxel_size = model.voxel_size;
   cm.scene_extent = model.scene_extent;
+  cm.frame = model.frame;
   cm.anchor_count = M;
   cm.source_anchors = model.anchor_count;
   cm.residual_bits = options.residual_bits;
@@ -261,6 +263,7 @@ HybridModel dequantize(const CompactModel& cm) {
   m.config = cm.config;
   m.voxel_size = cm.voxel_size;
   m.scene_extent = cm.scene_extent;
+  m.frame = cm.frame;
   const size_t M = cm.anchor_count, K = size_t(cm.config.k), F = size_t(cm.config.feature_dim);
   m.anchor_count = M;
   const double step = double(cm.voxel_size) / double(1u << cm.residual_bits);

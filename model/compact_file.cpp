@@ -106,7 +106,7 @@ std::vector<uint8_t> serialize_compact(const CompactModel& m, std::vector<Compac
   const ModelConfig& c = m.config;
   const size_t M = m.anchor_count;
   w.raw(kCompactMagic, 8);
-  w.u32(kCompactFileVersion);
+  w.u32(m.frame.identity() ? 2 : kCompactFileVersion);  // the identity frame: version 2, as before frames
   detail::write_model_header(&w, c, m.voxel_size, m.scene_extent);
   w.u64(M);
   w.u64(m.source_anchors);
@@ -122,6 +122,7 @@ std::vector<uint8_t> serialize_compact(const CompactModel& m, std::vector<Compac
   w.u32(uint32_t(m.image_levels));
   w.f32(m.log_scale_step);
   w.floats(m.log_scale_lo, 6);
+  if (!m.frame.identity()) detail::write_scene_frame(&w, m.frame);  // version 3
   log.close("header");
   for (const CompactStream& cs : compact_streams(m)) code(cs.group, cs.symbols.data(), cs.symbols.size());
   for (int id = 0; id < kMlpCount; ++id) {
@@ -225,6 +226,8 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
       if (!std::isfinite(lo) || !std::isfinite(lo + 65535.0f * m.log_scale_step))
         return bad("log-scale grid", "must stay finite over its 65,536 steps");
   }
+  if (version >= 3 && !detail::read_scene_frame(&r, &m.frame))
+    return r.status().ok() ? bad("scene frame", scene_frame_problem(m.frame)) : r.status();
   size_t pos = r.offset();
   std::vector<uint8_t> s(static_cast<size_t>(M));
   std::string err;

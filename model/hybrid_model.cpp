@@ -150,7 +150,7 @@ size_t serialized_model_size(const HybridModel& m) {
     ++mlps;
     floats += m.mlps[id].params.size();
   }
-  return 8 + 4 + header.bytes.size() + 8 + 4 * floats + 16 * mlps + 8;
+  return 8 + 4 + header.bytes.size() + (m.frame.identity() ? 0 : detail::kSceneFrameBytes) + 8 + 4 * floats + 16 * mlps + 8;
 }
 
 void append_serialized_model(const HybridModel& m, std::vector<uint8_t>* out) {
@@ -159,8 +159,9 @@ void append_serialized_model(const HybridModel& m, std::vector<uint8_t>* out) {
   const size_t start = w.bytes.size();
   const ModelConfig& c = m.config;
   w.raw(kModelMagic, 8);
-  w.u32(kModelFileVersion);
+  w.u32(m.frame.identity() ? 1 : kModelFileVersion);
   detail::write_model_header(&w, c, m.voxel_size, m.scene_extent);
+  if (!m.frame.identity()) detail::write_scene_frame(&w, m.frame);
   const size_t M = m.anchor_count;
   w.u64(M);
   w.floats(m.positions.data(), M * 3);
@@ -196,12 +197,14 @@ Expected<HybridModel> deserialize_model(const uint8_t* data, size_t size, const 
     return parse_error(source + ": not an hbgs model file (the first 8 bytes are not \"HBGSMODL\")");
   const uint32_t version = r.u32("the format version");
   if (!r.status().ok()) return r.status();
-  if (version != kModelFileVersion)
-    return unsupported(source + ": model file format version " + std::to_string(version) + ", but this hbgs reads version " +
+  if (version < 1 || version > kModelFileVersion)
+    return unsupported(source + ": model file format version " + std::to_string(version) + ", but this hbgs reads versions 1 to " +
                        std::to_string(kModelFileVersion) + " (retrain, or use the hbgs release that wrote it)");
   HybridModel m;
   ModelConfig& c = m.config;
   detail::read_model_header(&r, &c, &m.voxel_size, &m.scene_extent);
+  if (version >= 2 && !detail::read_scene_frame(&r, &m.frame))
+    return r.status().ok() ? parse_error(source + ": " + scene_frame_problem(m.frame)) : r.status();
   const uint64_t M = r.u64("the anchor count");
   if (!r.status().ok()) return r.status();
   Status valid = c.validate();

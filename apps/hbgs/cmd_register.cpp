@@ -25,11 +25,12 @@ int failed(const gs::Status& st) {
   return fail(kCmd, st.code() == gs::StatusCode::kInvalidArgument ? st.message() : st.to_string());
 }
 
-std::string pose_text(const gs::Pose& p) {
-  double q[4], t[3];
-  gs::io::pose_to_colmap(p, q, t);
+// The pose in the user's frame; a scene far from the origin (a scene frame of its own) gets every
+// digit of its translation.
+std::string pose_text(const double q[4], const double t[3], bool far) {
   char buf[200];
-  std::snprintf(buf, sizeof(buf), "%.8g %.8g %.8g %.8g %.8g %.8g %.8g", q[0], q[1], q[2], q[3], t[0], t[1], t[2]);
+  const int d = far ? 17 : 8;
+  std::snprintf(buf, sizeof(buf), "%.8g %.8g %.8g %.8g %.*g %.*g %.*g", q[0], q[1], q[2], q[3], d, t[0], d, t[1], d, t[2]);
   return buf;
 }
 
@@ -41,7 +42,7 @@ int run_single(const RegisterArgs& args) {
   const gs::pose::RegisterResult& r = s.result;
   std::printf("hbgs register: %s (%dx%d) against %s\n", a.image.c_str(), s.intrinsics.width, s.intrinsics.height,
               s.source.model_path.c_str());
-  std::printf("  pose (qw qx qy qz tx ty tz): %s\n", pose_text(r.pose).c_str());
+  std::printf("  pose (qw qx qy qz tx ty tz): %s\n", pose_text(s.pose_qvec, s.pose_tvec, !s.frame.identity()).c_str());
   std::printf("  verdict %s; RMSE %.4f -> %.4f, explained %.2f, coverage %.2f\n", gs::pose::verdict_name(r.verdict),
               r.initial_rmse, r.final_rmse, r.explained, r.coverage);
   std::printf("  moved %.3f deg, %.4g from --init; %d iterations over %d levels, %.1f ms (%s, downscale %d, %d threads)\n",

@@ -180,6 +180,14 @@ void pose_to_colmap(const Pose& pose, double qvec[4], double tvec[3]) {
   for (int i = 0; i < 3; ++i) tvec[i] = pose.t[i];
 }
 
+void pose_to_colmap(const SceneFrame& frame, const Pose& pose, double qvec[4], double tvec[3]) {
+  pose_to_colmap(pose, qvec, tvec);
+  if (frame.identity()) return;
+  double R[9];  // the rotation a reader gets from qvec
+  pose::rotation_from_quaternion(qvec, R);
+  pose_to_user(frame, pose, R, tvec);
+}
+
 namespace detail {
 
 void quaternion_from_rotation(const double m[9], double q[4]) {

@@ -18,6 +18,8 @@
 #include "gs/io/transforms.h"
 #include "gs/platform/file.h"
 #include "gs/platform/path.h"
+#include "gs/pose/pose.h"
+#include "gs/scene_frame.h"
 
 namespace gs::io {
 namespace {
@@ -108,7 +110,7 @@ struct Source {
   DatasetLayout layout = DatasetLayout::kColmap;
   std::vector<CameraPlan> plans;
   std::vector<ViewSpec> views;
-  std::vector<float> points_xyz;
+  std::vector<double> points_xyz;  // user units, double until the scene frame is applied
   std::vector<uint8_t> points_rgb;
   PointsSource points_source = PointsSource::kSfm;
   bool masks_named = false;  // every view names its mask file: masks_dir is not searched
@@ -149,7 +151,7 @@ Expected<Source> colmap_source(const std::string& root, const DatasetOptions& op
   src.points_xyz.reserve(model->points.size() * 3);
   src.points_rgb.reserve(model->points.size() * 3);
   for (const ColmapPoint3D& p : model->points) {
-    for (int k = 0; k < 3; ++k) src.points_xyz.push_back(float(p.xyz[k]));
+    for (int k = 0; k < 3; ++k) src.points_xyz.push_back(p.xyz[k]);
     for (int k = 0; k < 3; ++k) src.points_rgb.push_back(p.rgb[k]);
   }
   src.points_source = PointsSource::kSfm;
@@ -338,7 +340,7 @@ Expected<Source> transforms_source(const std::string& folder, const std::vector<
     GS_RETURN_IF_ERROR(clean_relative_path(ply, ply_source + ": ", "ply_file_path", &name));
     auto cloud = read_point_ply(detail::join_path(folder, name));
     if (!cloud.ok()) return cloud.status();
-    src.points_xyz = std::move(cloud->xyz);
+    src.points_xyz.assign(cloud->xyz.begin(), cloud->xyz.end());
     src.points_rgb = std::move(cloud->rgb);
     src.points_source = PointsSource::kPly;
   } else {
@@ -417,7 +419,8 @@ std::string view_mask_file(const ViewSpec& spec, const std::string& masks_root, 
 // ---- Assembly ----
 
 // The view's pinhole camera (downscaled to options.max_width) and pose.
-void view_camera(const CameraPlan& plan, const DatasetOptions& options, const ViewSpec& spec, DatasetView* view) {
+void view_camera(const CameraPlan& plan, const DatasetOptions& options, const ViewSpec& spec, const SceneFrame& frame,
+                 DatasetView* view) {
   PinholeIntrinsics& K = view->camera.intr;
   double sx = 1, sy = 1;
   K.width = plan.width, K.height = plan.height;
@@ -428,7 +431,21 @@ void view_camera(const CameraPlan& plan, const DatasetOptions& options, const Vi
   }
   K.fx = float(plan.fx * sx), K.cx = float(plan.cx * sx);
   K.fy = float(plan.fy * sy), K.cy = float(plan.cy * sy);
-  view->camera.pose = pose_from_colmap(spec.qvec, spec.tvec);
+  double R[9];
+  pose::rotation_from_quaternion(spec.qvec, R);
+  view->camera.pose = pose_to_frame(frame, R, spec.tvec);  // the identity frame: pose_from_colmap's pose
+}
+
+// The scene frame of the views' cameras (gs/scene_frame.h), from their stored double poses.
+SceneFrame views_frame(const Source& src) {
+  std::vector<double> centres(src.views.size() * 3);
+  for (size_t i = 0; i < src.views.size(); ++i) {
+    double R[9];
+    pose::rotation_from_quaternion(src.views[i].qvec, R);
+    const double* t = src.views[i].tvec;
+    for (int k = 0; k < 3; ++k) centres[3 * i + k] = -(R[k] * t[0] + R[3 + k] * t[1] + R[6 + k] * t[2]);
+  }
+  return choose_scene_frame(centres.data(), src.views.size());
 }
 
 std::string size_text(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
@@ -512,6 +529,8 @@ Expected<Dataset> assemble(const std::string& root, const std::string& folder, S
   Dataset ds;
   ds.root = root;
   ds.layout = src.layout;
+  ds.frame = options.frame ? *options.frame : views_frame(src);
+  if (const char* why = scene_frame_problem(ds.frame); *why) return invalid_argument(root + ": " + why);
   ds.views.reserve(src.views.size());
   for (size_t i = 0; i < src.views.size(); ++i) {
     const ViewSpec& spec = src.views[i];
@@ -532,7 +551,7 @@ Expected<Dataset> assemble(const std::string& root, const std::string& folder, S
     view.name = spec.name;
     view.image_id = spec.image_id;
     view.is_test = is_test_view(spec, i, options);
-    view_camera(plan, options, spec, &view);
+    view_camera(plan, options, spec, ds.frame, &view);
     const bool wanted = options.images == DatasetOptions::Images::kAll ||
                         (options.images == DatasetOptions::Images::kTest) == view.is_test;
     if (wanted) GS_RETURN_IF_ERROR(load_pixels(spec, plan, masks_root, &view));
@@ -540,7 +559,12 @@ Expected<Dataset> assemble(const std::string& root, const std::string& folder, S
   }
 
   ds.points_source = src.points_source;
-  ds.points_xyz = std::move(src.points_xyz);
+  ds.points_xyz.resize(src.points_xyz.size());
+  for (size_t i = 0; i + 2 < src.points_xyz.size(); i += 3) {
+    double x[3];
+    point_to_frame(ds.frame, &src.points_xyz[i], x);
+    for (int k = 0; k < 3; ++k) ds.points_xyz[i + size_t(k)] = float(x[k]);
+  }
   ds.points_rgb = std::move(src.points_rgb);
   if (src.points_source == PointsSource::kRandom) {
     if (options.random_points == 0) {

@@ -36,10 +36,12 @@ namespace {
 // as every reader sees it (so the format's quantisation counts).
 template <class Input>
 Status measure_written(const Input& input, const std::string& written, const std::vector<const io::DatasetView*>& test,
-                       const model::Background& background, platform::ThreadPool* pool, ExportRunSummary* s) {
+                       const SceneFrame& frame, const model::Background& background, platform::ThreadPool* pool,
+                       ExportRunSummary* s) {
   if (test.empty()) return Status::Ok();
   Expected<GaussianCloud> back = io::read_gaussians(written);
   if (!back.ok()) return back.status();
+  cloud_to_frame(frame, &*back);  // written in the user's frame; the test views are in the scene frame
   model::EvalOptions eo;
   eo.psnr_only = true;
   std::copy(background.rgb, background.rgb + 3, eo.render.background);
@@ -70,21 +72,18 @@ Status convert(const ExportRunOptions& a, io::SplatFormat format, double t0, Exp
   const bool measure = a.evaluate && resolve_model_source(a.input, a.dataset, a.max_width).ok();
   Expected<ModelViews> loaded = measure ? load_model_views(a.input, a.dataset, a.max_width, "test") : Expected<ModelViews>(ModelViews{});
   if (!loaded.ok()) return loaded.status();
-  if (measure) {
-    s.source = loaded->source;
-  } else {
-    Expected<GaussianCloud> c = io::read_gaussians(a.input);
-    if (!c.ok()) return c.status();
-    loaded->cloud = std::make_unique<GaussianCloud>(std::move(c).value());
-  }
-  GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *loaded->cloud, a.write));
-  s.gaussians = loaded->cloud->size();
+  if (measure) s.source = loaded->source;
+  // The file as read (the user's frame; load_model_views moved its copy into the scene frame).
+  Expected<GaussianCloud> c = io::read_gaussians(a.input);
+  if (!c.ok()) return c.status();
+  GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *c, a.write));
+  s.gaussians = c->size();
   s.bytes = file_size_or_zero(a.out);
   if (measure) {
     Expected<model::Background> background = model_background(s.source, "");
     if (!background.ok()) return background.status();
     platform::ThreadPool pool(a.threads);
-    GS_RETURN_IF_ERROR(measure_written(*loaded->cloud, a.out, test_views(*loaded), *background, &pool, &s));
+    GS_RETURN_IF_ERROR(measure_written(*loaded->cloud, a.out, test_views(*loaded), loaded->frame(), *background, &pool, &s));
   }
   s.seconds = platform::now_seconds() - t0;
   if (summary) *summary = std::move(s);
@@ -123,10 +122,11 @@ Status export_run(const ExportRunOptions& a, ExportRunSummary* summary) {
   bo.seed = a.seed;
   Expected<GaussianCloud> cloud = bake_over_training_views(*loaded, *background, bo, &pool, &s.bake);
   if (!cloud.ok()) return cloud.status();
+  cloud_to_user(loaded->frame(), &*cloud);  // files are in the user's frame (the dataset's own)
   GS_RETURN_IF_ERROR(io::write_gaussians(a.out, *cloud, a.write));
   s.gaussians = cloud->size();
   s.bytes = file_size_or_zero(a.out);
-  if (a.evaluate) GS_RETURN_IF_ERROR(measure_written(loaded->model, a.out, test_views(*loaded), *background, &pool, &s));
+  if (a.evaluate) GS_RETURN_IF_ERROR(measure_written(loaded->model, a.out, test_views(*loaded), loaded->frame(), *background, &pool, &s));
   s.seconds = platform::now_seconds() - t0;
   if (summary) *summary = std::move(s);
   return Status::Ok();

@@ -28,6 +28,7 @@ Status apply_pose_noise(io::Dataset* ds, const std::string& spec, const std::str
     if (!v.is_test) train.push_back(v.camera.pose);
   }
   pose::scene_frame(train.data(), train.size(), truth->centre, &truth->radius);
+  truth->unit = 1.0 / ds->frame.scale;
   if (noise.kind == pose::PoseNoise::kNone) return Status::Ok();
   // Each view draws its own stream (seeded by its index in the whole dataset), so which views are
   // perturbed does not change any one view's noise.
@@ -44,7 +45,12 @@ pose::PoseErrors errors_for(const std::vector<Pose>& estimated, const std::vecto
                                 const PoseTruth& truth, bool align) {
   std::vector<Pose> gt;
   for (size_t i : views) gt.push_back(truth.poses[i]);
-  return pose::pose_errors(estimated.data(), gt.data(), gt.size(), truth.radius, align);
+  pose::PoseErrors e = pose::pose_errors(estimated.data(), gt.data(), gt.size(), truth.radius, align);
+  if (truth.unit != 1) {  // distances in the user's units (fractions of the radius need nothing)
+    e.translation_mean *= truth.unit, e.translation_median *= truth.unit, e.ate_rmse *= truth.unit;
+    for (double& t : e.translation) t *= truth.unit;
+  }
+  return e;
 }
 
 nlohmann::json pose_errors_json(const pose::PoseErrors& e, bool per_view, const std::vector<std::string>& names) {
@@ -108,7 +114,7 @@ Status write_posed_transforms(const io::DatasetFiles& files, const std::string& 
 }  // namespace
 
 Status write_posed_model(const std::string& dataset_root, const std::vector<std::string>& names,
-                         const std::vector<Pose>& poses, const std::string& out_dir) {
+                         const std::vector<Pose>& poses, const std::string& out_dir, const SceneFrame& frame) {
   Expected<io::DatasetFiles> files = io::read_dataset_files(dataset_root);
   if (!files.ok()) return files.status();
   std::map<std::string, size_t> index;
@@ -117,7 +123,7 @@ Status write_posed_model(const std::string& dataset_root, const std::vector<std:
   for (io::ColmapImage& im : files->model.images) {
     const auto it = index.find(im.name);
     if (it == index.end()) continue;
-    io::pose_to_colmap(poses[it->second], im.qvec, im.tvec);
+    io::pose_to_colmap(frame, poses[it->second], im.qvec, im.tvec);
     ++replaced;
   }
   if (replaced != names.size())

@@ -31,11 +31,24 @@ namespace {
 namespace fs = std::filesystem;
 constexpr const char* kRegisterJson = "register.json";
 
-// COLMAP order qw qx qy qz tx ty tz.
-std::vector<double> colmap_pose(const Pose& p) {
+// COLMAP order qw qx qy qz tx ty tz, in the user's frame (a pose in the model's scene frame).
+std::vector<double> colmap_pose(const SceneFrame& frame, const Pose& p) {
   double q[4], t[3];
-  io::pose_to_colmap(p, q, t);
+  io::pose_to_colmap(frame, p, q, t);
   return {q[0], q[1], q[2], q[3], t[0], t[1], t[2]};
+}
+
+// The 7 numbers of a pose text (qw qx qy qz tx ty tz) that pose::parse_pose accepted, in double,
+// the quaternion normalised.
+void parse_colmap_numbers(const std::string& text, double q[4], double t[3]) {
+  std::string spaced = text;
+  std::replace(spaced.begin(), spaced.end(), ',', ' ');
+  std::istringstream in(spaced);
+  double v[7] = {1, 0, 0, 0, 0, 0, 0};
+  for (double& x : v) in >> x;
+  const double n = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3]);
+  for (int i = 0; i < 4; ++i) q[i] = v[i] / n;
+  for (int i = 0; i < 3; ++i) t[i] = v[4 + i];
 }
 
 // Camera-centre distance of two poses, world units.
@@ -207,6 +220,8 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
       dopt.images = io::DatasetOptions::Images::kTest;  // cameras only for the training views
       Expected<io::Dataset> ds = io::load_dataset(s.source.dataset, dopt);
       if (!ds.ok()) return ds.status();
+      s.frame = ds->frame;  // the Gaussians move into the dataset's scene frame
+      cloud_to_frame(s.frame, &cloud);
       std::vector<const Camera*> train;
       for (const io::DatasetView& v : ds->views)
         if (!v.is_test) train.push_back(&v.camera);
@@ -217,6 +232,15 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
     if (!m.ok()) return m.status();
     model = std::move(m).value();
     extent = model.scene_extent;
+    s.frame = model.frame;
+  }
+  // The start pose is in the user's frame, read again in double (parse_pose checked it): far
+  // from the origin float would have lost its translation.
+  if (!s.frame.identity()) {
+    double q[4], t[3], R[9];
+    parse_colmap_numbers(a.init, q, t);
+    pose::rotation_from_quaternion(q, R);
+    s.init = pose_to_frame(s.frame, R, t);
   }
   // A start pose far outside the scene cannot be registered (the model is not in view, and float
   // rendering loses all precision at 1e30): refuse it with the distance instead of failing later.
@@ -259,7 +283,8 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
     return Status(st.code(), a.image + ": " + st.message());
 
   s.moved_rotation_deg = pose::rotation_error_deg(r.pose, s.init);
-  s.moved_translation = centre_distance(r.pose, s.init);
+  s.moved_translation = centre_distance(r.pose, s.init) / s.frame.scale;
+  io::pose_to_colmap(s.frame, r.pose, s.pose_qvec, s.pose_tvec);
   nlohmann::ordered_json j = {{"model", absolute_path(s.source.model_path)},
                               {"image", absolute_path(a.image)},
                               {"intrinsics", {{"fx", K.fx}, {"fy", K.fy}, {"cx", K.cx}, {"cy", K.cy}, {"width", K.width}, {"height", K.height}}},
@@ -267,8 +292,8 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
                               {"downscale", a.downscale},
                               {"threads", s.threads},
                               {"pose_order", "qw qx qy qz tx ty tz (world-to-camera, COLMAP)"},
-                              {"init", colmap_pose(s.init)},
-                              {"pose", colmap_pose(r.pose)},
+                              {"init", colmap_pose(s.frame, s.init)},
+                              {"pose", colmap_pose(s.frame, r.pose)},
                               {"verdict", pose::verdict_name(r.verdict)},
                               {"converged", r.converged()},
                               {"initial_rmse", r.initial_rmse},
@@ -292,19 +317,19 @@ namespace {
 Status register_split(pose::Registrar& reg, const io::Dataset& ds, const std::vector<size_t>& index, const PoseTruth& truth,
                       const float background[3], const std::function<void(const RegisteredView&, size_t, size_t)>& progress,
                       std::vector<RegisteredView>* rows, std::vector<Pose>* estimated) {
-  const double radius = truth.radius;
+  const double radius = truth.radius * truth.unit;  // user units, as the distances below
   for (size_t k = 0; k < index.size(); ++k) {
     const io::DatasetView& v = ds.views[index[k]];
     const Pose& gt = truth.poses[index[k]];
     RegisteredView row;
     row.name = v.name;
     row.initial_rotation_deg = pose::rotation_error_deg(v.camera.pose, gt);
-    row.initial_translation = centre_distance(v.camera.pose, gt);
+    row.initial_translation = centre_distance(v.camera.pose, gt) * truth.unit;
     const io::Image8 photo = io::composite_rgb8(v.image, v.mask, background);  // a copy only when masked
     if (Status st = reg.register_view(photo.pixels.data(), v.camera.intr, v.camera.pose, &row.result); !st.ok())
       return Status(st.code(), "view " + v.name + ": " + st.message());
     row.rotation_deg = pose::rotation_error_deg(row.result.pose, gt);
-    row.translation = centre_distance(row.result.pose, gt);
+    row.translation = centre_distance(row.result.pose, gt) * truth.unit;
     row.success = row.rotation_deg < 1.0 && row.translation < 0.01 * radius;
     row.initial_translation_fraction = row.initial_translation / radius;
     row.translation_fraction = row.translation / radius;
@@ -353,7 +378,7 @@ SplitFigures split_figures(const std::vector<RegisteredView>& rows) {
   return f;
 }
 
-nlohmann::ordered_json registered_views_json(const std::vector<RegisteredView>& rows, double radius) {
+nlohmann::ordered_json registered_views_json(const std::vector<RegisteredView>& rows, double radius, const SceneFrame& frame) {
   nlohmann::ordered_json jv = nlohmann::ordered_json::array();
   for (const RegisteredView& row : rows)
     jv.push_back({{"name", row.name},
@@ -372,7 +397,7 @@ nlohmann::ordered_json registered_views_json(const std::vector<RegisteredView>& 
                   {"iterations", row.result.iterations},
                   {"levels", row.result.levels},
                   {"ms", row.result.milliseconds},
-                  {"pose", colmap_pose(row.result.pose)}});
+                  {"pose", colmap_pose(frame, row.result.pose)}});
   return jv;
 }
 
@@ -414,7 +439,7 @@ nlohmann::ordered_json register_views_json(const RegisterRunOptions& a, const Mo
           {"success_definition", "rotation error < 1 deg and translation error < 0.01 scene radius"},
           {"pose_order", "qw qx qy qz tx ty tz (world-to-camera, COLMAP)"},
           {"summary", jsum},
-          {"views", registered_views_json(rows, radius)}};
+          {"views", registered_views_json(rows, radius, loaded.frame())}};
 }
 
 }  // namespace
@@ -468,7 +493,7 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
                     : pose::Registrar::create(loaded->model, max_w, max_h, *ro, &pool);
   if (!reg.ok()) return reg.status();
   const double t0 = platform::now_seconds();
-  const double radius = truth.radius;
+  const double radius = truth.radius * truth.unit;
   std::vector<Pose> estimated;
   GS_RETURN_IF_ERROR(register_split(**reg, ds, index, truth, background->rgb, progress, &s.views, &estimated));
   reg->reset();  // its arena is not needed for the metrics below (peak memory: one renderer at a time)
@@ -489,7 +514,7 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   GS_RETURN_IF_ERROR(platform::write_file_atomic(json_path, text));
   if (!a.json.empty()) GS_RETURN_IF_ERROR(platform::write_file_atomic(a.json, text));
   const std::string posed = (fs::path(out) / "registered").string();
-  GS_RETURN_IF_ERROR(write_posed_model(src->dataset, names, estimated, posed));
+  GS_RETURN_IF_ERROR(write_posed_model(src->dataset, names, estimated, posed, loaded->frame()));
 
   s.source = *src;
   s.noise = pose::describe(noise);

@@ -212,6 +212,7 @@ Status load_splat_scene(const RenderRunOptions& a, SplatScene* scene) {
     Expected<GaussianCloud> loaded = io::read_gaussians(a.ply);
     if (!loaded.ok()) return loaded.status();
     scene->cloud = std::move(loaded).value();
+    cloud_to_frame(dataset->frame, &scene->cloud);  // the file is in the user's frame, the cameras in the scene frame
     scene->source = a.ply;
   } else {
     const size_t n = dataset->points_xyz.size() / 3;

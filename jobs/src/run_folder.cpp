@@ -194,10 +194,11 @@ Expected<model::Background> model_background(const ModelSource& source, const st
 }
 
 Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& root, int max_width,
-                                                                 const std::string& split) {
+                                                                 const std::string& split, const SceneFrame* frame) {
   GS_RETURN_IF_ERROR(check_dataset_path(root));
   io::DatasetOptions opt;
   opt.max_width = max_width;
+  if (frame) opt.frame = *frame;
   if (split == "test") opt.images = io::DatasetOptions::Images::kTest;
   if (split == "train") opt.images = io::DatasetOptions::Images::kTrain;
   Expected<io::Dataset> ds = io::load_dataset(root, opt);
@@ -226,9 +227,13 @@ Expected<ModelViews> load_model_views(const std::string& input, const std::strin
     if (!model.ok()) return model.status();
     out.model = std::move(model).value();
   }
-  Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(out.source.dataset, out.source.max_width, split);
+  // The dataset goes into the model's scene frame; plain Gaussians (in the user's frame, as every
+  // splat file is) go into the dataset's.
+  Expected<std::unique_ptr<LoadedDataset>> data =
+      load_dataset_split(out.source.dataset, out.source.max_width, split, out.cloud ? nullptr : &out.model.frame);
   if (!data.ok()) return data.status();
   out.data = std::move(data).value();
+  if (out.cloud) cloud_to_frame(out.data->dataset.frame, out.cloud.get());
   return out;
 }
 

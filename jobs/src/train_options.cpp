@@ -156,7 +156,7 @@ Status apply_recorded_options(const std::string& run, TrainRunOptions* a) {
   return Status::Ok();
 }
 
-std::string run_json(const TrainRunOptions& a) {
+std::string run_json(const TrainRunOptions& a, const SceneFrame& frame) {
   nlohmann::json j;
   j["format"] = "hbgs-run";
   j["dataset"] = absolute_path(a.dataset);
@@ -178,6 +178,10 @@ std::string run_json(const TrainRunOptions& a) {
                   {"pose-lr", a.pose_lr},               {"point-align", a.point_align},
                   {"register-passes", a.register_passes}, {"pose-init", a.pose_init},
                   {"sfm-images", a.sfm_images},         {"carve-points", a.carve_points}};
+  // Only a scene trained in a frame of its own records it (an ordinary run.json is as before).
+  if (!frame.identity())
+    j["scene_frame"] = {{"centre", {frame.centre[0], frame.centre[1], frame.centre[2]}}, {"scale", frame.scale},
+                        {"meaning", "x_model = scale * (x_dataset - centre)"}};
   return j.dump(2) + "\n";
 }
 

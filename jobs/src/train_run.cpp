@@ -251,7 +251,7 @@ Status TrainRun::start() {
   if (a_.force)
     for (const fs::path& p : previous_)
       if (fs::remove_all(p, ec), ec) return io_error("cannot remove " + p.string() + ": " + ec.message());
-  GS_RETURN_IF_ERROR(platform::write_file_atomic((fs::path(a_.out) / kRunJson).string(), run_json(a_)));
+  GS_RETURN_IF_ERROR(platform::write_file_atomic((fs::path(a_.out) / kRunJson).string(), run_json(a_, trainer_->model().frame)));
   training_started_ = true;
 
   title_ = "Test PSNR vs training time: " + fs::path(absolute_path(a_.dataset)).filename().string();
@@ -288,7 +288,7 @@ nlohmann::json TrainRun::pose_json() const {
   return nlohmann::json{{"noise", a_.pose_noise},
                         {"noise_on", a_.pose_noise_on},
                         {"optimized", a_.optimize_poses},
-                        {"scene_radius", d_->truth.radius},
+                        {"scene_radius", d_->truth.radius * d_->truth.unit},
                         {"train_input", pose_errors_json(d_->input_errors, false)},
                         {"sfm_init", d_->sfm_init},
                         {"point_alignment", d_->point_alignment},
@@ -522,7 +522,7 @@ Status TrainRun::finish() {
   }
   if (a_.optimize_poses)
     GS_RETURN_IF_ERROR(write_posed_model(a_.dataset, d_->train_names, poses_of(trainer_->cameras()),
-                                         (fs::path(a_.out) / "refined_poses").string()));
+                                         (fs::path(a_.out) / "refined_poses").string(), trainer_->model().frame));
   return Status::Ok();
 }
 

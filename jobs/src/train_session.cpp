@@ -119,9 +119,14 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
 
   d.kernels = options.isa.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(options.isa.c_str());
   if (!d.kernels) return invalid_argument("--isa: kernel table '" + options.isa + "' is not compiled in or not supported by this CPU");
-  Expected<model::HybridModel> m = model::create_model(resolved->model, d.dataset.points_xyz.data(), npoints,
+  // The dataset is in its scene frame (gs/scene_frame.h; the identity for an ordinary scene): the
+  // model lives there too, and --voxel-size (user units) is converted to it.
+  model::ModelConfig config = resolved->model;
+  config.voxel_size = float(double(config.voxel_size) * d.dataset.frame.scale);
+  Expected<model::HybridModel> m = model::create_model(config, d.dataset.points_xyz.data(), npoints,
                                                        model::cameras_extent(train_cameras), options.seed);
   if (!m.ok()) return m.status();
+  m->frame = d.dataset.frame;
   Expected<std::unique_ptr<model::Trainer>> trainer =
       model::Trainer::create(std::move(m).value(), d.train_views, resolved->train, d.pool.get(), d.kernels);
   if (!trainer.ok()) return trainer.status();

@@ -329,7 +329,19 @@ TEST_CASE("compact: version 1 files are still read, and rewritten as the current
   CHECK(old->image_levels == 255);
   for (const QuantMlp& q : old->mlps) CHECK(q.w1_fine.empty());
   const std::vector<uint8_t> v2 = serialize_compact(*old);
-  REQUIRE(v2[8] == kCompactFileVersion);
+  REQUIRE(v2[8] == 2);  // the current layout; version 3 only adds a scene frame other than the identity
+  {  // a scene frame other than the identity: version 3, read back exactly, and kept by dequantize
+    CompactModel framed = *old;
+    framed.frame.centre[0] = 2.5e6, framed.frame.centre[2] = -1.0e5;
+    framed.frame.scale = 0.25;
+    const std::vector<uint8_t> v3 = serialize_compact(framed);
+    REQUIRE(v3[8] == 3);
+    CHECK(v3.size() == v2.size() + 32);
+    Expected<CompactModel> back3 = deserialize_compact(v3.data(), v3.size(), "v3.hbgc");
+    REQUIRE_MESSAGE(back3.ok(), back3.status().to_string());
+    CHECK(back3->frame == framed.frame);
+    CHECK(dequantize(*back3).frame == framed.frame);
+  }
   Expected<CompactModel> back = deserialize_compact(v2.data(), v2.size(), "v2.hbgc");
   REQUIRE_MESSAGE(back.ok(), back.status().to_string());
   const HybridModel a = dequantize(*old), b = dequantize(*back);

@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "gs/hash.h"
+
 #include "gs/model/hybrid_model.h"
 #include "support/temp_dir.h"
 #include "support/model_fixtures.h"
@@ -58,6 +60,7 @@ void check_identical(const HybridModel& a, const HybridModel& b) {
   CHECK(std::memcmp(&x.voxel_size, &y.voxel_size, 4) == 0);
   CHECK(std::memcmp(&a.voxel_size, &b.voxel_size, 4) == 0);
   CHECK(std::memcmp(&a.scene_extent, &b.scene_extent, 4) == 0);
+  CHECK(a.frame == b.frame);
   REQUIRE(a.anchor_count == b.anchor_count);
   const size_t M = a.anchor_count, K = size_t(x.k);
   CHECK(same_bits(a.positions.data(), b.positions.data(), M * 3));
@@ -235,13 +238,38 @@ TEST_CASE("model file: save and load round trip is bit-exact") {
   CHECK_FALSE(parse_image_feature_mode("Paper ").ok());
 }
 
+TEST_CASE("model file: a scene frame other than the identity is stored (version 2) and checked") {
+  HybridModel model = random_model(ImageFeatureMode::kNone, 13);
+  const std::vector<uint8_t> plain = serialize_model(model);
+  model.frame.centre[0] = 1.0e7 + 0.25, model.frame.centre[1] = -3.5e5, model.frame.centre[2] = 0.125;
+  model.frame.scale = 1.0 / 1024;
+  const std::vector<uint8_t> bytes = serialize_model(model);
+  CHECK(model.file_bytes() == bytes.size());
+  CHECK(bytes.size() == plain.size() + 32);
+  uint32_t v = 0;
+  std::memcpy(&v, bytes.data() + 8, 4);
+  CHECK(v == 2);
+  Expected<HybridModel> back = deserialize_model(bytes.data(), bytes.size(), "framed.hbgs");
+  REQUIRE_MESSAGE(back.ok(), back.status().to_string());
+  check_identical(model, *back);
+  CHECK(serialize_model(*back) == bytes);
+  // A zero scale is refused (the checksum is fixed up so the frame check itself is what fails).
+  model.frame.scale = 0;
+  std::vector<uint8_t> bad = serialize_model(model);
+  const uint64_t sum = fnv1a64(bad.data(), bad.size() - 8);
+  for (int i = 0; i < 8; ++i) bad[bad.size() - 8 + size_t(i)] = uint8_t(sum >> (8 * i));
+  Expected<HybridModel> refused = deserialize_model(bad.data(), bad.size(), "framed.hbgs");
+  REQUIRE_FALSE(refused.ok());
+  CHECK(refused.status().message().find("scene frame") != std::string::npos);
+}
+
 TEST_CASE("model file: another format version is refused with a message naming it") {
   const HybridModel model = random_model(ImageFeatureMode::kPaper, 12);
   std::vector<uint8_t> bytes = serialize_model(model);
   // The version is the little-endian u32 after the 8-byte magic.
   uint32_t v = 0;
   std::memcpy(&v, bytes.data() + 8, 4);
-  CHECK(v == kModelFileVersion);
+  CHECK(v == 1);  // the identity scene frame: version 1, as before frames existed
   for (uint32_t other : {kModelFileVersion + 1, uint32_t(0), uint32_t(77)}) {
     const uint8_t le[4] = {uint8_t(other), uint8_t(other >> 8), uint8_t(other >> 16), uint8_t(other >> 24)};
     std::memcpy(bytes.data() + 8, le, 4);

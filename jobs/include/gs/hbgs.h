@@ -3,7 +3,7 @@
 // library (find_package(hbgs) -> hbgs::hbgs, or pkg-config hbgs); docs/API.md says the same at length.
 //
 // Layers, each using only those below it: gs/status.h, span.h, stats.h, random.h (hbgs::base);
-// gs/simd/ kernels (hbgs::simd); gs/platform/ threads, clock, files (hbgs::platform); gs/camera.h,
+// gs/simd/ kernels (hbgs::simd); gs/platform/ threads, clock, files (hbgs::platform); gs/camera.h, scene_frame.h,
 // render.h, gs/pose/pose.h (hbgs::core); gs/io/ COLMAP, NeRF-style transforms.json, images,
 // composites, PLY and the splat exchange formats (hbgs::io); gs/metrics/ PSNR, SSIM, LPIPS
 // (hbgs::metrics); gs/model/ the hybrid anchor model, trainer, backgrounds and baking to plain
@@ -22,6 +22,7 @@
 #pragma once
 
 #include "gs/camera.h"
+#include "gs/scene_frame.h"
 #include "gs/io/colmap.h"
 #include "gs/io/composite.h"
 #include "gs/io/image.h"

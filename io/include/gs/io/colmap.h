@@ -5,11 +5,13 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "gs/camera.h"
 #include "gs/io/image.h"
+#include "gs/scene_frame.h"
 #include "gs/status.h"
 
 namespace gs::io {
@@ -77,6 +79,9 @@ Status write_colmap_binary(const ColmapModel& model, const std::string& dir);
 // Converts a COLMAP (qvec, tvec) to a gs::Pose and back.
 Pose pose_from_colmap(const double qvec[4], const double tvec[3]);
 void pose_to_colmap(const Pose& pose, double qvec[4], double tvec[3]);
+// A pose in a scene frame (gs/scene_frame.h) as COLMAP's (qvec, tvec) in the user's frame; for the
+// identity frame exactly pose_to_colmap's values.
+void pose_to_colmap(const SceneFrame& frame, const Pose& pose, double qvec[4], double tvec[3]);
 
 // Which kind of folder load_dataset reads (see load_dataset).
 enum class DatasetLayout {
@@ -121,6 +126,10 @@ struct DatasetOptions {
   // trainer's default initial budget (25,000) and quick to prune where the scene is empty.
   int random_points = 10000;
   uint64_t random_points_seed = 1;
+  // The frame the cameras and points are given in (gs/scene_frame.h): unset, the one
+  // choose_scene_frame picks from all the views' camera centres (the identity for an ordinary scene);
+  // set, that one (a trained model's, so its dataset lines up with it).
+  std::optional<SceneFrame> frame;
 };
 
 // One view of a dataset: a pinhole camera (after undistortion and downscaling) and its image.
@@ -143,6 +152,10 @@ struct Dataset {
   std::vector<float> points_xyz;      // [P, 3]
   std::vector<uint8_t> points_rgb;    // [P, 3]
   PointsSource points_source = PointsSource::kSfm;
+  // The frame of every pose and point above (x_frame = scale (x_user - centre)); converted from the
+  // files' double values, so a scene far from the origin keeps its precision. The identity for an
+  // ordinary scene (then everything is as stored).
+  SceneFrame frame;
   // kRandom: the box the points were drawn in (world units) and the fraction of all cameras that
   // see each of them (1: every camera).
   float random_box_min[3] = {0, 0, 0}, random_box_max[3] = {0, 0, 0};

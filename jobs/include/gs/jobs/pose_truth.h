@@ -18,6 +18,9 @@ struct PoseTruth {
   std::vector<Pose> poses;  // [dataset.views]
   double centre[3] = {0, 0, 0};
   double radius = 1;        // largest distance of a training camera centre from their mean
+  // User units per unit of the dataset's scene frame (1 / io::Dataset::frame.scale): poses, centre
+  // and radius are in the frame; reported distances (errors_for, register.json) are multiplied by it.
+  double unit = 1;
 };
 
 // Records the true poses, then perturbs the poses of the views in `which` ("train", "test" or
@@ -37,8 +40,10 @@ pose::PoseErrors errors_for(const std::vector<Pose>& estimated, const std::vecto
 // place; hbgs's loader refuses '..' in dataset paths), with the dataset's split as
 // train_filenames / val_filenames / test_filenames (val = test) when it has test views.
 inline constexpr const char* kPosedTransformsJson = "transforms.json";
+// The poses are in the scene frame `frame` (the model's, gs/scene_frame.h) and are written in the
+// dataset's own frame.
 Status write_posed_model(const std::string& dataset_root, const std::vector<std::string>& names,
-                         const std::vector<Pose>& poses, const std::string& out_dir);
+                         const std::vector<Pose>& poses, const std::string& out_dir, const SceneFrame& frame = {});
 
 // Pose errors of one COLMAP model against another (`hbgs compare-poses`): images matched by name
 // (at least 3), the estimate Sim(3)-aligned onto the truth by camera centres, plus the relative

@@ -48,9 +48,11 @@ Expected<pose::RegisterOptions> register_options(const RegisterRunOptions& optio
 struct RegisterImageSummary {
   ModelSource source;
   PinholeIntrinsics intrinsics;
-  Pose init;
-  pose::RegisterResult result;
-  double moved_rotation_deg = 0, moved_translation = 0;  // from init (camera centre, world units)
+  Pose init;                  // in the model's scene frame (frame)
+  pose::RegisterResult result;  // result.pose: in the model's scene frame
+  SceneFrame frame;             // the model's (for plain Gaussians, their dataset's) scene frame
+  double pose_qvec[4] = {1, 0, 0, 0}, pose_tvec[3] = {0, 0, 0};  // result.pose in the user's frame (COLMAP)
+  double moved_rotation_deg = 0, moved_translation = 0;  // from init (camera centre, user units)
   int threads = 0;
   std::string note;  // e.g. a distorted dataset camera used as a pinhole ("" : nothing to say)
 };

@@ -58,8 +58,9 @@ struct LoadedDataset {
   io::Dataset dataset;
   std::vector<const io::DatasetView*> views;  // the chosen split, into dataset.views
 };
+// frame: the scene frame to load it into (a model's); null: the dataset's own (choose_scene_frame).
 Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& root, int max_width,
-                                                             const std::string& split);
+                                                             const std::string& split, const SceneFrame* frame = nullptr);
 
 // A trained model (run folder or .hbgs file, as resolve_model_source) with the views of split
 // `split` of its dataset: what evaluation, rendering and batch registration start from.
@@ -72,6 +73,9 @@ struct ModelViews {
   // World size for registration steps and limits: the model's, or for a cloud the training
   // cameras' (model::cameras_extent).
   float scene_extent() const;
+  // The scene frame everything above is in (gs/scene_frame.h): the model's, which its dataset was
+  // loaded into; for plain Gaussians their dataset's, which they were moved into.
+  const SceneFrame& frame() const { return data->dataset.frame; }
 };
 Expected<ModelViews> load_model_views(const std::string& input, const std::string& dataset_override, int max_width_override,
                                       const std::string& split);

@@ -33,7 +33,7 @@ namespace gs::platform { class ThreadPool; }
 
 namespace gs::model {
 
-constexpr uint32_t kCompactFileVersion = 2;  // version 1 files are still read
+constexpr uint32_t kCompactFileVersion = 3;  // versions 1 and 2 are still read; the identity frame writes 2
 constexpr char kCompactMagic[8] = {'H', 'B', 'G', 'S', 'C', 'M', 'P', 'T'};
 
 // Calibrated activation ranges of one MLP over the visible anchors of every calibration view (the
@@ -68,6 +68,7 @@ struct QuantMlp {
 struct CompactModel {
   ModelConfig config;
   float voxel_size = 0.0f, scene_extent = 1.0f;
+  SceneFrame frame;               // HybridModel::frame (version 3; older files: the identity)
   size_t anchor_count = 0;        // M (after pruning)
   uint64_t source_anchors = 0;    // anchors of the float model it was made from
   uint32_t calibration_views = 0; // views the activation ranges were measured on

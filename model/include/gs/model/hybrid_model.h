@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "gs/scene_frame.h"
 #include "gs/simd/mlp.h"
 #include "gs/status.h"
 
@@ -76,6 +77,10 @@ struct HybridModel {
   size_t anchor_count = 0;   // live rows M
   float voxel_size = 0.0f;   // eps actually used
   float scene_extent = 1.0f; // 1.1 x max distance of a training camera centre from their mean
+  // The frame the model lives in (gs/scene_frame.h; its dataset's, io::Dataset::frame): positions,
+  // offsets, scales and scene_extent are in its units. Outputs for the user (exported Gaussians,
+  // poses) are converted back to the user's frame with it; datasets are loaded into it.
+  SceneFrame frame;
   std::vector<float> positions;   // [cap, 3] fixed
   std::vector<float> offsets;     // [cap, k, 3]
   std::vector<float> log_scales;  // [cap, 6]: [0:3] offset scale, [3:6] Gaussian base scale
@@ -98,9 +103,12 @@ Expected<HybridModel> create_model(const ModelConfig& config, const float* xyz, 
 // Shape of MLP `id` (MlpId) for a configuration: what every model file's MLP must match.
 simd::MlpShape model_mlp_shape(const ModelConfig& config, int id);
 
-// Model file: magic "HBGSMODL", format version, config, live rows, MLPs; little-endian; written
-// atomically. load_model refuses other versions, truncated or inconsistent files with a message.
-constexpr uint32_t kModelFileVersion = 1;
+// Model file: magic "HBGSMODL", format version, config, (version 2: the scene frame, centre[3] and
+// scale as f64), live rows, MLPs; little-endian; written atomically. A model in the identity frame
+// is written as version 1, byte for byte as before frames existed (older hbgs reads it); another
+// frame needs version 2. Reading accepts both (version 1: the identity frame) and refuses other
+// versions, truncated or inconsistent files with a message.
+constexpr uint32_t kModelFileVersion = 2;
 std::vector<uint8_t> serialize_model(const HybridModel& model);
 // The same bytes appended to *out (the trainer's checkpoint embeds them without a second copy), and
 // their count (serialize_model reserves exactly that: no growth doubling of the buffer).
