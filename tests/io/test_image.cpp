@@ -348,7 +348,7 @@ TEST_CASE("image_from_float_rgb clamps and rounds") {
 namespace gs::io {
 namespace {
 
-TEST_CASE("decode as stored keeps alpha; read_image_info; JPEG encode round trip") {
+TEST_CASE("decode as stored keeps alpha, read_image_info, JPEG encode round trip") {
   test::TempDir dir;
   const Image8 rgba = random_image(7, 5, 4, 3), rgb = random_image(7, 5, 3, 4), grey = random_image(7, 5, 1, 5);
   Image8 grey_alpha = rgba;  // stb writes 2-channel PNGs; read back as stored they are RGBA

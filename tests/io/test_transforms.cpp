@@ -612,7 +612,7 @@ DatasetView sphere_view(const Camera& cam, Vec C, double r, const std::string& n
   return v;
 }
 
-TEST_CASE("carve_points_from_masks: points on the surface the views see, coloured by it, seeded; errors") {
+TEST_CASE("carve_points_from_masks: points on the surface the views see, coloured by it, seeded, errors") {
   const PinholeIntrinsics K{60, 60, 32, 24, 64, 48};
   const Vec C{0, 0, 0.3};
   const double r = 0.6;

@@ -12,16 +12,14 @@
 
 #include "gs/capture/ingest.h"
 #include "gs/platform/file.h"
+#include "support/run_command.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 using gs::platform::WriteFault;
 
-int run(const std::string& command) {
-  MESSAGE(command);
-  return std::system((command + " > /dev/null 2>&1").c_str());
-}
+using gs::test::run;
 
 // Every file under dir (relative name -> bytes).
 std::map<std::string, std::string> snapshot(const fs::path& dir) {
@@ -37,7 +35,7 @@ std::map<std::string, std::string> snapshot(const fs::path& dir) {
 
 }  // namespace
 
-TEST_CASE("fault injection: every write of an ingest fails once; the dataset it replaces survives and a rerun succeeds (e2e, COLMAP)") {
+TEST_CASE("fault injection: every write of an ingest fails once, the dataset it replaces survives and a rerun succeeds (e2e, COLMAP)") {
   gs::capture::IngestOptions o;
   o.select.target_count = 10;
   o.colmap.permissive_registration = true;  // few, small frames

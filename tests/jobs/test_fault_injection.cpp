@@ -26,6 +26,7 @@
 #include "gs/jobs/run_state.h"
 #include "gs/jobs/train.h"
 #include "gs/platform/file.h"
+#include "support/run_command.h"
 
 namespace {
 
@@ -39,10 +40,7 @@ const char* fault_name(WriteFault f) {
 // The OS reason each fault must surface as, in the error message.
 const char* fault_reason(WriteFault f) { return f == WriteFault::kIoError ? "Input/output error" : "No space left on device"; }
 
-int run(const std::string& command) {
-  MESSAGE(command);
-  return std::system((command + " > /dev/null 2>&1").c_str());
-}
+using gs::test::run;
 
 // One folder per process: ctest runs the cases of this file as separate processes, in parallel.
 const fs::path& tmp_root() {
@@ -122,7 +120,7 @@ void check_run_consistent(const fs::path& run, const std::string& context) {
 
 }  // namespace
 
-TEST_CASE("fault injection: every write of a short training run fails once; the folder stays committed and --resume finishes it exactly") {
+TEST_CASE("fault injection: every write of a short training run fails once, the folder stays committed and --resume finishes it exactly") {
   const fs::path ref = tmp_root() / "train_ref";
   gs::platform::inject_write_fault(0, WriteFault::kNoSpace);
   gs::jobs::TrainRunSummary summary;
@@ -169,7 +167,7 @@ TEST_CASE("fault injection: every write of a short training run fails once; the 
   CHECK(resumed > 0);
 }
 
-TEST_CASE("fault injection: every write of a render fails once; nothing of it is left and a rerun gives the same images") {
+TEST_CASE("fault injection: every write of a render fails once, nothing of it is left and a rerun gives the same images") {
   const fs::path run_dir = tmp_root() / "render_model";
   gs::Status st = gs::jobs::train_run(short_run(run_dir.string()), nullptr, nullptr);
   REQUIRE_MESSAGE(st.ok(), st.to_string());
@@ -305,7 +303,7 @@ TEST_CASE("run state: recovery completes a commit interrupted among its renames 
   CHECK_MESSAGE(rec.status().message().find("not a plain name") != std::string::npos, rec.status().to_string());
 }
 
-TEST_CASE("run folder: a run that failed before its first checkpoint restarts with --resume; a plain train says so") {
+TEST_CASE("run folder: a run that failed before its first checkpoint restarts with --resume, a plain train says so") {
   const fs::path run = tmp_root() / "no_checkpoint";
   std::error_code ec;
   fs::remove_all(run, ec);
@@ -385,7 +383,7 @@ TEST_CASE("run folder: kill -9 at random moments leaves a committed state that -
   CHECK(interrupted == 6);
 }
 
-TEST_CASE("run folder: --force replaces a run whose state is damaged; without it the damage is reported") {
+TEST_CASE("run folder: --force replaces a run whose state is damaged, without it the damage is reported") {
   const fs::path run = tmp_root() / "damaged";
   std::error_code ec;
   fs::remove_all(run, ec);

@@ -19,24 +19,15 @@
 #include "gs/jobs/register.h"
 #include "gs/jobs/train.h"
 #include "gs/platform/file.h"
+#include "support/run_command.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 
-int run(const std::string& command) {
-  MESSAGE(command);
-  return std::system((command + " > /dev/null 2>&1").c_str());
-}
+using gs::test::run;
 
-// A fresh folder under the test's temporary root.
-fs::path fresh(const std::string& name) {
-  const fs::path dir = fs::path(GS_TEST_TMP) / name;
-  std::error_code ec;
-  fs::remove_all(dir, ec);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path fresh(const std::string& name) { return gs::test::fresh_dir(GS_TEST_TMP, name); }
 
 // Checks <dir>/transforms.json against <dir>/{cameras,images}.txt: every image once, with the same
 // pose (1e-9: both come from the same double pose) and intrinsics, a file_path (and mask_path when

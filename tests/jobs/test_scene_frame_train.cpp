@@ -20,23 +20,15 @@
 #include "gs/jobs/export.h"
 #include "gs/jobs/train.h"
 #include "gs/pose/pose.h"
+#include "support/run_command.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 
-int run(const std::string& command) {
-  MESSAGE(command);
-  return std::system((command + " > /dev/null 2>&1").c_str());
-}
+using gs::test::run;
 
-fs::path fresh(const std::string& name) {
-  const fs::path dir = fs::path(GS_TEST_TMP) / name;
-  std::error_code ec;
-  fs::remove_all(dir, ec);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path fresh(const std::string& name) { return gs::test::fresh_dir(GS_TEST_TMP, name); }
 
 // The user's change of frame: x' = scale x + shift.
 struct Move {

@@ -16,15 +16,13 @@
 #include "gs/jobs/train.h"
 #include "gs/platform/file.h"
 #include "gs/stage_times.h"
+#include "support/run_command.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 
-int run(const std::string& command) {
-  MESSAGE(command);
-  return std::system((command + " > /dev/null 2>&1").c_str());
-}
+using gs::test::run;
 
 nlohmann::json json_in(const std::string& json_file) {
   gs::Expected<std::string> text = gs::platform::read_text_file(json_file);

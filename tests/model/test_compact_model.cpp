@@ -264,7 +264,7 @@ TEST_CASE("compact: measured offset steps never clip, and offsets of Gaussians n
   }
 }
 
-TEST_CASE("compact: pruning drops anchors no camera sees; calibration measures every MLP") {
+TEST_CASE("compact: pruning drops anchors no camera sees, calibration measures every MLP") {
   HybridModel m = random_model(ImageFeatureMode::kPaper, 5);
   // Move a tenth of the anchors far below the cameras' ring, where no camera looks.
   size_t moved = 0;

@@ -103,7 +103,7 @@ TEST_CASE("fxp: quantize_multiplier round-trips reals within half a Q31 step, at
   CHECK(m == 0);
 }
 
-TEST_CASE("fxp: multiply_by_quantized_multiplier approximates x * real; saturating shifts and casts") {
+TEST_CASE("fxp: multiply_by_quantized_multiplier approximates x * real, saturating shifts and casts") {
   std::mt19937 rng(4);
   std::uniform_int_distribution<int32_t> d(-(1 << 20), 1 << 20);
   std::uniform_real_distribution<double> u(-12, 6);
