@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: MIT
 # Fails when a doctest TEST_CASE name contains ';'. doctest_discover_tests turns each case into a
 # ctest entry whose name is a CMake list element, so a ';' splits the name in two: each half runs
-# "--test-case=<half>", which matches no case, and passes with no assertion run (8 cases did so
+# "--test-case=<half>", which matches no case, and passes with no assertion run (9 cases did so
 # until issue 24's session). Usage: cmake -DSOURCE_DIR=<repo> [-DPLANT_FILE=f -DPLANT_TEXT=t] -P this
 # (a planted file is checked as if it were in tests/, to prove the check fails).
 file(GLOB_RECURSE sources "${SOURCE_DIR}/tests/*.cpp")
