@@ -7,8 +7,9 @@
 # the test views, and how far joint optimisation moved the training poses.
 #   scripts/ba-real-poses.sh [OUT] [DATA] [ITERATIONS]   (default out/ba-real-poses, ../shared/data, 7000)
 # Resumable like scripts/ablation.sh: a run whose results.json exists is kept (the `fixed` runs have
-# the same options as the ablation's seed-0 runs of the default --image-features mode, so those can be linked in). About 25 minutes
-# per 7,000-iteration pair on 2 cores. Writes OUT/ba.md and OUT/ba.csv.
+# the same options as the ablation's seed-0 runs of the default --image-features mode, so those can
+# be linked in as OUT/runs/<scene>_fixed). About 10 minutes per 7,000-iteration pair on 2 quiet
+# cores. Writes OUT/ba.md and OUT/ba.csv.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 out=${1:-out/ba-real-poses}
