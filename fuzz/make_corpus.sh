@@ -87,8 +87,9 @@ ffmpeg -v error -nostdin -f lavfi -i color=c=gray:s=2x2 -frames:v 1 -pix_fmt gra
 { printf '\x01'; cat "$tmp/run/checkpoint.bin"; } >"$out/checkpoint/tiny.ckpt"
 "$hbgs" compact "$tmp/run" --out "$tmp/run/model.hbgc" --no-eval --threads 1 >/dev/null
 { printf '\x01'; cat "$tmp/run/model.hbgc"; } >"$out/compact/tiny.hbgc"
-# compact/tiny_v1.hbgc (kept, not remade): the same kind of file in format version 1, which the
-# reader still reads (tests/model/test_compact_model.cpp reads it too).
+# compact/tiny_v1.hbgc, tiny_v2.hbgc and tiny_v3.hbgc (kept, not remade): the same kind of file in
+# format versions 1, 2 and 3 (version 3: with a scene frame other than the identity), which the
+# reader still reads (tests/model/test_compact_model.cpp reads them too).
 
 # Video: 5 frames of 32x24 as H.264/MP4 and MJPEG/AVI.
 ffmpeg -v error -nostdin -f lavfi -i testsrc=size=32x24:rate=5 -frames:v 5 -c:v libx264 -pix_fmt yuv420p "$out/video/tiny.mp4"

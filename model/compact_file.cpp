@@ -2,6 +2,7 @@
 // The compact model file (gs/model/compact_model.h): "HBGSCMPT", version, header, the channel
 // streams coded with byte rANS (gs/model/byte_rans.h), raw MLP blocks and an FNV-1a 64 trailer;
 // the reader checks every count against the configuration and the bytes present.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -67,7 +68,15 @@ uint32_t position_symbol(const CompactModel& m, size_t r, int a) {
   return cell_delta << rb | residual;
 }
 
+// Neural Gaussian `slot` of row r has an offset other than (0, 0, 0).
+bool offset_is_set(const CompactModel& m, size_t r, size_t slot) {
+  const int8_t* o = m.offsets.data() + (r * size_t(m.config.k) + slot) * 3;
+  return o[0] != 0 || o[1] != 0 || o[2] != 0;
+}
+
 }  // namespace
+
+OffsetMaskLayout::OffsetMaskLayout(size_t k) : streams((k + 7) / 8), bits(streams ? (k + streams - 1) / streams : 0) {}
 
 std::vector<CompactStream> compact_streams(const CompactModel& m) {
   const size_t M = m.anchor_count, K = size_t(m.config.k), F = size_t(m.config.feature_dim);
@@ -84,7 +93,27 @@ std::vector<CompactStream> compact_streams(const CompactModel& m) {
   for (int a = 0; a < 3; ++a)
     for (int b = 0; b < 3; ++b) add("positions", [&](size_t r) { return position_symbol(m, r, a) >> (8 * b); });
   for (int b = 0; b < 2; ++b) add("offset scales", [&](size_t r) { return m.offset_scale[r] >> (8 * b); });
-  for (size_t ch = 0; ch < 3 * K; ++ch) add("offsets", [&](size_t r) { return m.offsets[r * 3 * K + ch]; });
+  // Offsets (version 4): first which neural Gaussians have an offset other than (0, 0, 0), as
+  // OffsetMaskLayout's bit fields of the slots (joint, since an anchor's slots are kept alike),
+  // then per channel the offsets of those Gaussians alone. 45 % of the built-in model's Gaussians
+  // are kept in no view and stored as 0 (compact_from_model); coding them as symbols among the
+  // real offsets cost 48 kB of its 293 kB, the masks 16 kB.
+  const OffsetMaskLayout mask_layout(K);
+  for (size_t g = 0; g < mask_layout.streams; ++g)
+    add("offsets", [&](size_t r) {
+      uint32_t bits = 0;
+      for (size_t b = 0; b < mask_layout.bits; ++b) {
+        const size_t slot = g * mask_layout.bits + b;
+        if (slot < K && offset_is_set(m, r, slot)) bits |= 1u << b;
+      }
+      return bits;
+    });
+  for (size_t ch = 0; ch < 3 * K; ++ch) {
+    CompactStream cs{"offsets", {}};
+    for (size_t r = 0; r < M; ++r)
+      if (offset_is_set(m, r, ch / 3)) cs.symbols.push_back(uint8_t(m.offsets[r * 3 * K + ch]));
+    out.push_back(std::move(cs));
+  }
   for (size_t ch = 0; ch < 6; ++ch)
     for (int b = 0; b < 2; ++b) add("log-scales", [&](size_t r) { return m.log_scales[6 * r + ch] >> (8 * b); });
   for (size_t ch = 0; ch < F; ++ch) add("features", [&](size_t r) { return m.features[r * F + ch]; });
@@ -106,7 +135,7 @@ std::vector<uint8_t> serialize_compact(const CompactModel& m, std::vector<Compac
   const ModelConfig& c = m.config;
   const size_t M = m.anchor_count;
   w.raw(kCompactMagic, 8);
-  w.u32(m.frame.identity() ? 2 : kCompactFileVersion);  // the identity frame: version 2, as before frames
+  w.u32(kCompactFileVersion);
   detail::write_model_header(&w, c, m.voxel_size, m.scene_extent);
   w.u64(M);
   w.u64(m.source_anchors);
@@ -122,7 +151,7 @@ std::vector<uint8_t> serialize_compact(const CompactModel& m, std::vector<Compac
   w.u32(uint32_t(m.image_levels));
   w.f32(m.log_scale_step);
   w.floats(m.log_scale_lo, 6);
-  if (!m.frame.identity()) detail::write_scene_frame(&w, m.frame);  // version 3
+  detail::write_scene_frame(&w, m.frame);  // version 3: only when not the identity; version 4: always
   log.close("header");
   for (const CompactStream& cs : compact_streams(m)) code(cs.group, cs.symbols.data(), cs.symbols.size());
   for (int id = 0; id < kMlpCount; ++id) {
@@ -226,13 +255,13 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
       if (!std::isfinite(lo) || !std::isfinite(lo + 65535.0f * m.log_scale_step))
         return bad("log-scale grid", "must stay finite over its 65,536 steps");
   }
-  if (version >= 3 && !detail::read_scene_frame(&r, &m.frame))
+  if (version >= 3 && !detail::read_scene_frame(&r, &m.frame))  // the writer of version 3 left out the identity
     return r.status().ok() ? bad("scene frame", scene_frame_problem(m.frame)) : r.status();
   size_t pos = r.offset();
   std::vector<uint8_t> s(static_cast<size_t>(M));
   std::string err;
-  auto stream = [&](const std::string& what) -> Status {
-    if (!detail::rans_decode_bytes(data, body_end, &pos, size_t(M), s.data(), &err))
+  auto stream = [&](const std::string& what, size_t n = SIZE_MAX) -> Status {
+    if (!detail::rans_decode_bytes(data, body_end, &pos, n == SIZE_MAX ? size_t(M) : n, s.data(), &err))
       return parse_error(source + ": " + what + " stream at byte " + std::to_string(pos) + ": " + err);
     return Status::Ok();
   };
@@ -268,9 +297,31 @@ Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, con
     if ((m.offset_scale[i] & 0x7c00u) == 0x7c00u || (m.offset_scale[i] & 0x8000u))
       return bad("offset scale of anchor " + std::to_string(i), "must be finite and >= 0");
   m.offsets.assign(size_t(M) * 3 * K, 0);
-  for (size_t ch = 0; ch < 3 * K; ++ch) {
-    GS_RETURN_IF_ERROR(stream("offset channel " + std::to_string(ch)));
-    for (size_t i = 0; i < M; ++i) m.offsets[i * 3 * K + ch] = int8_t(s[i]);
+  if (version >= 4) {  // the slot masks, then each channel's offsets of the set slots alone
+    const OffsetMaskLayout layout(K);
+    std::vector<uint8_t> set(size_t(M) * K, 0);  // [M, k]
+    std::vector<size_t> set_count(K, 0);
+    for (size_t g = 0; g < layout.streams; ++g) {
+      GS_RETURN_IF_ERROR(stream("offset mask " + std::to_string(g)));
+      const size_t first = g * layout.bits, width = std::min(layout.bits, K - first);
+      for (size_t i = 0; i < M; ++i) {
+        if (s[i] >> width)
+          return bad("offset mask " + std::to_string(g) + " of anchor " + std::to_string(i) + " (" + std::to_string(s[i]) + ")",
+                     "must have at most " + std::to_string(width) + " bits");
+        for (size_t b = 0; b < width; ++b)
+          if (s[i] >> b & 1u) set[i * K + first + b] = 1, ++set_count[first + b];
+      }
+    }
+    for (size_t ch = 0; ch < 3 * K; ++ch) {
+      GS_RETURN_IF_ERROR(stream("offset channel " + std::to_string(ch), set_count[ch / 3]));
+      for (size_t i = 0, j = 0; i < M; ++i)
+        if (set[i * K + ch / 3]) m.offsets[i * 3 * K + ch] = int8_t(s[j++]);
+    }
+  } else {
+    for (size_t ch = 0; ch < 3 * K; ++ch) {
+      GS_RETURN_IF_ERROR(stream("offset channel " + std::to_string(ch)));
+      for (size_t i = 0; i < M; ++i) m.offsets[i * 3 * K + ch] = int8_t(s[i]);
+    }
   }
   m.log_scales.assign(size_t(M) * 6, 0);
   for (size_t ch = 0; ch < 6; ++ch)

@@ -316,41 +316,109 @@ TEST_CASE("compact: the file round-trips and load_model reads it as the dequanti
   }
 }
 
-TEST_CASE("compact: version 1 files are still read, and rewritten as the current version without loss") {
-  // A fuzz corpus seed: a version 1 file written by hbgs compact, after the harness's first byte.
-  Expected<std::vector<uint8_t>> seed = platform::read_file(std::string(GS_SOURCE_DIR) + "/fuzz/corpus/compact/tiny_v1.hbgc");
-  REQUIRE_MESSAGE(seed.ok(), seed.status().to_string());
-  REQUIRE(seed->size() > 21);
-  const std::vector<uint8_t> v1(seed->begin() + 1, seed->end());
-  REQUIRE(v1[8] == 1);  // the format version, little-endian
-  Expected<CompactModel> old = deserialize_compact(v1.data(), v1.size(), "v1.hbgc");
-  REQUIRE_MESSAGE(old.ok(), old.status().to_string());
-  CHECK(old->log_scale_step == 0.0f);  // fp16 log-scales
-  CHECK(old->image_levels == 255);
-  for (const QuantMlp& q : old->mlps) CHECK(q.w1_fine.empty());
-  const std::vector<uint8_t> v2 = serialize_compact(*old);
-  REQUIRE(v2[8] == 2);  // the current layout; version 3 only adds a scene frame other than the identity
-  {  // a scene frame other than the identity: version 3, read back exactly, and kept by dequantize
-    CompactModel framed = *old;
-    framed.frame.centre[0] = 2.5e6, framed.frame.centre[2] = -1.0e5;
-    framed.frame.scale = 0.25;
-    const std::vector<uint8_t> v3 = serialize_compact(framed);
-    REQUIRE(v3[8] == 3);
-    CHECK(v3.size() == v2.size() + 32);
-    Expected<CompactModel> back3 = deserialize_compact(v3.data(), v3.size(), "v3.hbgc");
-    REQUIRE_MESSAGE(back3.ok(), back3.status().to_string());
-    CHECK(back3->frame == framed.frame);
-    CHECK(dequantize(*back3).frame == framed.frame);
+TEST_CASE("compact: version 1, 2 and 3 files are still read, and rewritten as the current version without loss") {
+  // Fuzz corpus seeds: files written by hbgs compact in each older version, after the harness's
+  // first byte (version 3: a scene frame other than the identity).
+  for (uint8_t version : {uint8_t(1), uint8_t(2), uint8_t(3)}) {
+    CAPTURE(int(version));
+    const std::string name = "tiny_v" + std::to_string(version) + ".hbgc";
+    Expected<std::vector<uint8_t>> seed = platform::read_file(std::string(GS_SOURCE_DIR) + "/fuzz/corpus/compact/" + name);
+    REQUIRE_MESSAGE(seed.ok(), seed.status().to_string());
+    REQUIRE(seed->size() > 21);
+    const std::vector<uint8_t> old_bytes(seed->begin() + 1, seed->end());
+    REQUIRE(old_bytes[8] == version);  // the format version, little-endian
+    Expected<CompactModel> old = deserialize_compact(old_bytes.data(), old_bytes.size(), name);
+    REQUIRE_MESSAGE(old.ok(), old.status().to_string());
+    CHECK(old->log_scale_step == (version == 1 ? 0.0f : 0.02f));  // version 1: fp16 log-scales
+    CHECK(old->image_levels == (version == 1 ? 255 : 15));
+    for (const QuantMlp& q : old->mlps) CHECK(q.w1_fine.empty() == (version == 1));
+    CHECK(old->frame.identity() == (version < 3));
+    const std::vector<uint8_t> now = serialize_compact(*old);
+    REQUIRE(now[8] == kCompactFileVersion);
+    if (version >= 2) CHECK(now.size() < old_bytes.size() + (version == 2 ? 32 : 0));  // the masks pay for the 32-byte frame
+    Expected<CompactModel> back = deserialize_compact(now.data(), now.size(), "now.hbgc");
+    REQUIRE_MESSAGE(back.ok(), back.status().to_string());
+    CHECK(back->frame == old->frame);
+    CHECK(dequantize(*back).frame == old->frame);
+    const HybridModel a = dequantize(*old), b = dequantize(*back);
+    CHECK(a.positions == b.positions);
+    CHECK(a.offsets == b.offsets);
+    CHECK(a.log_scales == b.log_scales);
+    CHECK(a.features == b.features);
+    CHECK(a.image_raw == b.image_raw);
+    for (int id = 0; id < kMlpCount; ++id) CHECK(a.mlps[id].params == b.mlps[id].params);
   }
-  Expected<CompactModel> back = deserialize_compact(v2.data(), v2.size(), "v2.hbgc");
+}
+
+TEST_CASE("compact: version 4 codes which neural Gaussians have an offset, then only their offsets") {
+  for (size_t k : {size_t(1), size_t(5), size_t(8), size_t(9), size_t(10), size_t(16), size_t(17)}) {
+    const OffsetMaskLayout layout(k);
+    CAPTURE(k);
+    CHECK(layout.bits <= 8);
+    CHECK(layout.streams * layout.bits >= k);
+    CHECK((layout.streams - 1) * layout.bits < k);  // no stream is empty
+  }
+  CHECK(OffsetMaskLayout(10).streams == 2);
+  CHECK(OffsetMaskLayout(10).bits == 5);
+  const HybridModel m = random_model(ImageFeatureMode::kPaper, 41);
+  Expected<CompactModel> cm = compact_from_model(m, ring_cameras(4), CompactOptions{}, nullptr);
+  REQUIRE(cm.ok());
+  // Unset offsets in a pattern: whole anchors, single slots, and a slot with one zero axis only.
+  const size_t K = size_t(cm->config.k), M = cm->anchor_count;
+  REQUIRE(M >= 8);
+  for (size_t r = 0; r < M; ++r)
+    for (size_t j = 0; j < K; ++j) {
+      int8_t* o = cm->offsets.data() + (r * K + j) * 3;
+      if (r % 3 == 0 || (r + j) % 4 == 0) o[0] = o[1] = o[2] = 0;
+      else if (j == 1) o[0] = 0, o[2] = o[2] ? o[2] : 1;  // still set
+    }
+  const std::vector<uint8_t> bytes = serialize_compact(*cm);
+  REQUIRE(bytes[8] == 4);
+  Expected<CompactModel> back = deserialize_compact(bytes.data(), bytes.size(), "masked.hbgc");
   REQUIRE_MESSAGE(back.ok(), back.status().to_string());
-  const HybridModel a = dequantize(*old), b = dequantize(*back);
-  CHECK(a.positions == b.positions);
-  CHECK(a.offsets == b.offsets);
-  CHECK(a.log_scales == b.log_scales);
-  CHECK(a.features == b.features);
-  CHECK(a.image_raw == b.image_raw);
-  for (int id = 0; id < kMlpCount; ++id) CHECK(a.mlps[id].params == b.mlps[id].params);
+  CHECK(back->offsets == cm->offsets);
+  // The offset streams: the masks (one symbol per anchor) then one symbol per set Gaussian.
+  size_t set = 0;
+  for (size_t r = 0; r < M; ++r)
+    for (size_t j = 0; j < K; ++j) {
+      const int8_t* o = cm->offsets.data() + (r * K + j) * 3;
+      set += (o[0] || o[1] || o[2]);
+    }
+  size_t mask_symbols = 0, offset_symbols = 0, offset_streams = 0;
+  for (const CompactStream& s : compact_streams(*cm))
+    if (s.group == "offsets") (offset_streams++ < OffsetMaskLayout(K).streams ? mask_symbols : offset_symbols) += s.symbols.size();
+  CHECK(mask_symbols == OffsetMaskLayout(K).streams * M);
+  CHECK(offset_symbols == 3 * set);
+  // No offset set at all: empty channel streams.
+  CompactModel none = *cm;
+  std::fill(none.offsets.begin(), none.offsets.end(), int8_t(0));
+  const std::vector<uint8_t> zero = serialize_compact(none);
+  Expected<CompactModel> zero_back = deserialize_compact(zero.data(), zero.size(), "zero.hbgc");
+  REQUIRE_MESSAGE(zero_back.ok(), zero_back.status().to_string());
+  CHECK(zero_back->offsets == none.offsets);
+  // A mask symbol with a bit beyond its stream's slots (bit `width` of a `width`-slot stream) is refused
+  // by name: the first mask stream recoded with one such symbol, the checksum made valid.
+  const size_t width = OffsetMaskLayout(K).bits;
+  REQUIRE(width < 8);
+  std::vector<CompactSection> sections;
+  serialize_compact(*cm, &sections);
+  size_t at = 0, i = 0;
+  while (sections[i].group != "offsets") at += sections[i++].bytes;
+  std::vector<uint8_t> masks(compact_streams(*cm)[11].symbols);  // 9 position + 2 offset-scale streams before it
+  REQUIRE(masks.size() == M);
+  masks[M / 2] = uint8_t(1u << width);
+  std::vector<uint8_t> coded;
+  detail::rans_encode_bytes(masks.data(), masks.size(), &coded);
+  std::vector<uint8_t> bad(bytes.begin(), bytes.begin() + long(at));
+  bad.insert(bad.end(), coded.begin(), coded.end());
+  bad.insert(bad.end(), bytes.begin() + long(at + sections[i].bytes), bytes.end());
+  const uint64_t sum = fnv1a64(bad.data(), bad.size() - 8);
+  std::memcpy(bad.data() + bad.size() - 8, &sum, 8);  // little-endian hosts (all hbgs targets)
+  Expected<CompactModel> refused = deserialize_compact(bad.data(), bad.size(), "mask.hbgc");
+  REQUIRE_FALSE(refused.ok());
+  CHECK(refused.status().message().find("mask.hbgc: offset mask 0 of anchor " + std::to_string(M / 2) + " (" +
+                                        std::to_string(1u << width) + ") must have at most " + std::to_string(width) + " bits") !=
+        std::string::npos);
 }
 
 TEST_CASE("compact: corrupt, truncated, foreign and future files are refused with a message") {

@@ -10,6 +10,7 @@
 //   offsets     int8, symmetric, one fp16 step per anchor (per-channel scales cost 0.036 dB on the
 //               built-in scene: a few large offsets set every anchor's step), measured from the
 //               training views' sensitivity to the anchor; 0 for a Gaussian no view keeps
+//               (version 4 codes which Gaussians have an offset, then only theirs)
 //   log-scales  a uniform grid per channel, log_scale_lo[c] + q log_scale_step, q uint16
 //               (version 1 files: fp16)
 //   features    int8, symmetric, one step per feature channel, by its first-layer weight
@@ -33,7 +34,7 @@ namespace gs::platform { class ThreadPool; }
 
 namespace gs::model {
 
-constexpr uint32_t kCompactFileVersion = 3;  // versions 1 and 2 are still read; the identity frame writes 2
+constexpr uint32_t kCompactFileVersion = 4;  // versions 1 to 3 are still read
 constexpr char kCompactMagic[8] = {'H', 'B', 'G', 'S', 'C', 'M', 'P', 'T'};
 
 // Calibrated activation ranges of one MLP over the visible anchors of every calibration view (the
@@ -68,7 +69,7 @@ struct QuantMlp {
 struct CompactModel {
   ModelConfig config;
   float voxel_size = 0.0f, scene_extent = 1.0f;
-  SceneFrame frame;               // HybridModel::frame (version 3; older files: the identity)
+  SceneFrame frame;               // HybridModel::frame (version 3 and on; older files: the identity)
   size_t anchor_count = 0;        // M (after pruning)
   uint64_t source_anchors = 0;    // anchors of the float model it was made from
   uint32_t calibration_views = 0; // views the activation ranges were measured on
@@ -142,13 +143,20 @@ struct CompactSection {
   size_t bytes = 0, symbols = 0;
   double entropy_bytes = 0;
 };
-// The byte streams the file entropy-codes, in file order (group names as in CompactSection), each
-// with one symbol per anchor: what serialize_compact codes and bench_entropy measures.
+// The byte streams the file entropy-codes, in file order (group names as in CompactSection), one
+// symbol per anchor, except the offsets' channels (one per neural Gaussian whose offset is set):
+// what serialize_compact codes and bench_entropy measures.
 struct CompactStream {
   std::string group;
   std::vector<uint8_t> symbols;
 };
 std::vector<CompactStream> compact_streams(const CompactModel& model);
+// Version 4's offset masks: the k slots of an anchor in `streams` byte streams of `bits` slots each
+// (bit b of stream g: slot g bits + b has an offset other than (0, 0, 0)); k = 10: 2 x 5 bits.
+struct OffsetMaskLayout {
+  explicit OffsetMaskLayout(size_t k);
+  size_t streams, bits;
+};
 // sections (optional): appended in file order, one per stream or raw block.
 std::vector<uint8_t> serialize_compact(const CompactModel& model, std::vector<CompactSection>* sections = nullptr);
 Expected<CompactModel> deserialize_compact(const uint8_t* data, size_t size, const std::string& source);
