@@ -1,0 +1,99 @@
+// SPDX-License-Identifier: MIT
+// Live camera tracking against a trained model (issue 25): the pose of every frame of a stream.
+// A keyframe (the model rendered with depth at a pose) serves many frames: each frame is aligned
+// directly to it (Levenberg-Marquardt on the 6-DoF twist, warping keyframe pixels by their depth,
+// coarse to fine on box pyramids) from a constant-velocity prediction; a new keyframe is rendered
+// when the camera has moved far from it or the residual grows. Every frame gets a verdict:
+// `tracking`, `relocalized` (placed again after being lost, from candidate poses ranked by a small
+// global image descriptor and registered with gs::pose::Registrar) or `lost` (no pose is claimed).
+//
+// Memory: create() plans every buffer for the model and the frame size, set_candidates() renders
+// and describes the candidates; track() allocates nothing.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "gs/camera.h"
+#include "gs/model/hybrid_model.h"
+#include "gs/model/register.h"
+#include "gs/status.h"
+
+namespace gs::platform { class ThreadPool; }
+namespace gs::simd { struct KernelTable; }
+
+namespace gs::pose {
+
+struct TrackOptions {
+  int track_downscale = 2;         // frames are aligned at 1/track_downscale of their size (box filter)
+  int levels = 3;                  // pyramid levels of the alignment, each half the size of the previous
+  int iterations_per_level = 10;   // Levenberg-Marquardt steps per level at most
+  // A new keyframe is rendered when the camera has turned or moved this far from the keyframe's
+  // pose (translation in units of the model's scene extent), or after an alignment whose RMSE
+  // exceeds keyframe_rmse.
+  double keyframe_rotation_deg = 6.0, keyframe_translation = 0.05, keyframe_rmse = 0.06;
+  // Verdict of an aligned frame: `tracking` when the RMSE over colour values in [0, 1] is at most
+  // max_rmse, the render explains at least min_explained of the frame's variance and the model
+  // covers at least min_coverage of it; otherwise the tracker relocalises.
+  double max_rmse = 0.12, min_explained = 0.5, min_coverage = 0.3;
+  bool motion_model = true;        // predict from the last two poses (constant velocity)
+  int relocalize_candidates = 3;   // registrations from the best-ranked candidates when lost
+  RegisterOptions relocalize;      // the registrations' options (finest_downscale, verdict, ...)
+  bool fixed_point = false;        // keyframe and verdict renders with the fixed-point blending
+  float background[3] = {0, 0, 0}; // the colour behind the model (the one it was trained on)
+};
+
+enum class TrackVerdict { kTracking, kRelocalized, kLost };
+const char* track_verdict_name(TrackVerdict v);  // "tracking", "relocalized", "lost"
+
+// Wall milliseconds of one track() call by stage.
+struct TrackStageMs {
+  double prepare = 0;     // the frame's box filter and pyramid
+  double align = 0;       // direct alignment to the keyframe
+  double keyframe = 0;    // decoding and rendering keyframes
+  double verdict = 0;     // the residual, explained variance and coverage of the result
+  double relocalize = 0;  // descriptor ranking and registrations when lost
+  double total = 0;
+};
+
+struct TrackResult {
+  Pose pose;              // world-to-camera in the model's frame; meaningless when verdict is kLost
+  TrackVerdict verdict = TrackVerdict::kLost;
+  double rmse = 0, explained = 0, coverage = 0;  // at the returned pose, tracking resolution
+  int iterations = 0;     // LM steps of this frame
+  bool new_keyframe = false;
+  uint64_t keyframes = 0; // keyframes rendered since create()
+  TrackStageMs ms;
+};
+
+class Tracker {
+ public:
+  // frame: the stream's intrinsics at full resolution (frames are that size). The model must stay
+  // alive while the tracker is used.
+  static Expected<std::unique_ptr<Tracker>> create(const model::HybridModel& model, const PinholeIntrinsics& frame,
+                                                   const TrackOptions& options, platform::ThreadPool* pool,
+                                                   const simd::KernelTable* kernels = nullptr);
+  ~Tracker();
+  // Candidate poses for relocalisation (e.g. the training views): each is rendered once and
+  // described; replaces the earlier set. Allocates.
+  Status set_candidates(const std::vector<Pose>& poses);
+  // The next frame is aligned from this pose (a known start); without it, or after reset(), the
+  // next frame is relocalised from the candidates.
+  void reset(const Pose& start);
+  void reset();
+  // One RGB frame [H, W, 3] (8-bit) of the size given at create(), at time_seconds (used by the
+  // motion model). Errors (not verdicts): a null frame, times that go backwards. Allocates nothing.
+  Status track(const uint8_t* rgb, double time_seconds, TrackResult* result);
+
+  const TrackOptions& options() const;
+  uint64_t planned_bytes() const;
+
+ private:
+  Tracker();
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace gs::pose
