@@ -209,8 +209,8 @@ struct Registrar::Impl {
       key_valid = true;
     }
     const int f = finest / ks;
-    box_down(key_rgb.data(), kc.intr.width, kc.intr.height, 3, f, rgb.data());
-    box_down(key_alpha.data(), kc.intr.width, kc.intr.height, 1, f, lvl_alpha.data());
+    io::box_downsample_float(key_rgb.data(), kc.intr.width, kc.intr.height, 3, f, rgb.data());
+    io::box_downsample_float(key_alpha.data(), kc.intr.width, kc.intr.height, 1, f, lvl_alpha.data());
     return Status::Ok();
   }
 
@@ -267,21 +267,6 @@ struct Registrar::Impl {
       if (!accepted) break;  // no descent direction left at this level
     }
     return Status::Ok();
-  }
-
-  // Mean of f x f blocks of a [h, w, c] float image, c <= 3 (remainder dropped; float sums).
-  static void box_down(const float* src, int w, int h, int c, int f, float* dst) {
-    const float norm = 1.0f / float(f * f);
-    const size_t nc = size_t(c);
-    io::box_filter<std::array<float, 3>>(
-        w, h, f, w / f, h / f,
-        [&](std::array<float, 3>& sum, int x, int y) {
-          const float* p = src + (size_t(y) * size_t(w) + size_t(x)) * nc;
-          for (size_t k = 0; k < nc; ++k) sum[k] += p[k];
-        },
-        [&](size_t i, const std::array<float, 3>& sum) {
-          for (size_t k = 0; k < nc; ++k) dst[i * nc + k] = sum[k] * norm;
-        });
   }
 
   // Renders the keyframe (colour, depth, alpha) at the finest level for the pose of cam.
@@ -416,9 +401,9 @@ struct Registrar::Impl {
     const float* T = renderer.final_transmittance();
     for (size_t i = 0; i < n; ++i) key_alpha[i] = 1.0f - T[i];
     const int f = finest / ks;
-    box_down(key_rgb.data(), kc.intr.width, kc.intr.height, 3, f, lvl_rgb.data());
-    box_down(key_depth.data(), kc.intr.width, kc.intr.height, 1, f, lvl_depth.data());
-    box_down(key_alpha.data(), kc.intr.width, kc.intr.height, 1, f, lvl_alpha.data());
+    io::box_downsample_float(key_rgb.data(), kc.intr.width, kc.intr.height, 3, f, lvl_rgb.data());
+    io::box_downsample_float(key_depth.data(), kc.intr.width, kc.intr.height, 1, f, lvl_depth.data());
+    io::box_downsample_float(key_alpha.data(), kc.intr.width, kc.intr.height, 1, f, lvl_alpha.data());
     return Status::Ok();
   }
 
@@ -536,9 +521,9 @@ struct Registrar::Impl {
       for (int s = coarsest; s >= finest; s /= 2) {
         const int f = s / key_scale;
         const PinholeIntrinsics in = scaled_camera(kcam, f).intr;
-        box_down(key_rgb.data(), kw, kh, 3, f, lvl_rgb.data());
-        box_down(key_depth.data(), kw, kh, 1, f, lvl_depth.data());
-        box_down(key_alpha.data(), kw, kh, 1, f, lvl_alpha.data());
+        io::box_downsample_float(key_rgb.data(), kw, kh, 3, f, lvl_rgb.data());
+        io::box_downsample_float(key_depth.data(), kw, kh, 1, f, lvl_depth.data());
+        io::box_downsample_float(key_alpha.data(), kw, kh, 1, f, lvl_alpha.data());
         io::box_downsample_rgb(image, full->intr.width, full->intr.height, s, target.data());
         if (k == 0 && s == coarsest)
           align_from_candidates(in, &rel, iterations, deadline);

@@ -1,7 +1,21 @@
 // SPDX-License-Identifier: MIT
-// Live tracking against a model (gs/model/tracker.h). Work in progress: create() refuses until the
-// tracker lands (issue 25).
+// Live tracking against a model (gs/model/tracker.h): keyframes rendered at full resolution and
+// box-filtered to the tracking pyramid, direct alignment of each frame to the current keyframe,
+// a verdict per frame, and relocalisation from described candidate poses.
 #include "gs/model/tracker.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "gs/io/image.h"
+#include "gs/model/model_renderer.h"
+#include "gs/platform/clock.h"
+#include "gs/platform/thread_pool.h"
+#include "gs/pose/pose.h"
+#include "pose_solve.h"
 
 namespace gs::pose {
 
@@ -14,22 +28,597 @@ const char* track_verdict_name(TrackVerdict v) {
   return "?";
 }
 
+namespace {
+
+constexpr size_t kChunk = 256;          // keyframe points per partial sum (fixed: sums do not depend on threads)
+constexpr size_t kKeyframeRing = 16;    // recent keyframes kept as relocalisation candidates
+constexpr double kHuberDelta = 0.1;     // per-pixel colour residual norm where the Huber weight starts to fall
+constexpr double kMinInside = 0.5;      // a frame whose keyframe points mostly leave it is not tracked
+
+// Sums of one chunk of keyframe points (or of all): the upper triangle of J^T W J, J^T W r, the
+// Huber cost, the squared colour residual and the counts.
+struct Sums {
+  double A[21], b[6], cost, se, sum, sq;  // sum, sq: of the frame's colour values at the points inside
+  uint32_t used, inside;
+  void clear() { std::memset(this, 0, sizeof(*this)); }
+  void add(const Sums& o) {
+    for (int i = 0; i < 21; ++i) A[i] += o.A[i];
+    for (int i = 0; i < 6; ++i) b[i] += o.b[i];
+    cost += o.cost, se += o.se, sum += o.sum, sq += o.sq, used += o.used, inside += o.inside;
+  }
+};
+
+// Keyframe points of one pyramid level: camera coordinates and colour of every covered pixel.
+struct KeyLevel {
+  PinholeIntrinsics in;
+  std::vector<float> xyz, rgb;  // [n, 3] each
+  size_t n = 0;
+};
+
+struct FrameLevel {
+  PinholeIntrinsics in;
+  std::vector<float> rgb;  // [h, w, 3] in [0, 1]
+};
+
+// b = a^-1 composed: the pose mapping camera a's coordinates to camera b's, b a^-1.
+Pose relative(const Pose& to, const Pose& from) {
+  double R[9], t[3];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      double s = 0;
+      for (int k = 0; k < 3; ++k) s += double(to.R[3 * i + k]) * double(from.R[3 * j + k]);
+      R[3 * i + j] = s;
+    }
+  for (int i = 0; i < 3; ++i)
+    t[i] = double(to.t[i]) - (R[3 * i] * from.t[0] + R[3 * i + 1] * from.t[1] + R[3 * i + 2] * from.t[2]);
+  Pose p;
+  for (int i = 0; i < 9; ++i) p.R[i] = float(R[i]);
+  for (int i = 0; i < 3; ++i) p.t[i] = float(t[i]);
+  return p;
+}
+
+// rel applied after base: (R_rel R_base, R_rel t_base + t_rel).
+Pose compose(const Pose& rel, const Pose& base) {
+  Pose p;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      double s = 0;
+      for (int k = 0; k < 3; ++k) s += double(rel.R[3 * i + k]) * double(base.R[3 * k + j]);
+      p.R[3 * i + j] = float(s);
+    }
+    double s = rel.t[i];
+    for (int k = 0; k < 3; ++k) s += double(rel.R[3 * i + k]) * double(base.t[k]);
+    p.t[i] = float(s);
+  }
+  return p;
+}
+
+double centre_distance(const Pose& a, const Pose& b) {
+  double ca[3], cb[3];
+  centre(a, ca);
+  centre(b, cb);
+  return std::sqrt((ca[0] - cb[0]) * (ca[0] - cb[0]) + (ca[1] - cb[1]) * (ca[1] - cb[1]) + (ca[2] - cb[2]) * (ca[2] - cb[2]));
+}
+
+// A global image descriptor: the grey levels of a small image, zero mean, unit norm (their dot
+// product is the normalised cross-correlation of two images of the same size).
+void describe(const float* rgb, size_t pixels, float* out) {
+  double mean = 0;
+  for (size_t i = 0; i < pixels; ++i) mean += (rgb[3 * i] + rgb[3 * i + 1] + rgb[3 * i + 2]) / 3.0;
+  mean /= double(std::max<size_t>(pixels, 1));
+  double sq = 0;
+  for (size_t i = 0; i < pixels; ++i) {
+    const double g = (rgb[3 * i] + rgb[3 * i + 1] + rgb[3 * i + 2]) / 3.0 - mean;
+    out[i] = float(g);
+    sq += g * g;
+  }
+  const float inv = sq > 0 ? float(1.0 / std::sqrt(sq)) : 0.0f;
+  for (size_t i = 0; i < pixels; ++i) out[i] *= inv;
+}
+
+}  // namespace
+
 struct Tracker::Impl {
+  const model::HybridModel* model = nullptr;
   TrackOptions opt;
+  platform::ThreadPool* pool = nullptr;
+  PinholeIntrinsics full;
+  int levels = 1;
+  double extent = 1;
+  model::ModelRenderer renderer;
+  std::unique_ptr<Registrar> registrar;
+  std::vector<float> key_rgb, key_alpha, key_depth;  // the keyframe render, full resolution
+  std::vector<float> lvl_rgb, lvl_alpha, lvl_depth;  // its box-filtered level (scratch)
+  std::vector<KeyLevel> key;
+  std::vector<FrameLevel> frame;
+  std::vector<Sums> partial;
+  Pose key_pose;
+  bool have_key = false;
+  uint64_t keyframes = 0;
+  // Motion: the last two tracked poses and times; `placed` while the previous frame had a pose.
+  Pose last[2];
+  double last_time[2] = {0, 0};
+  int history = 0;
+  bool placed = false, have_start = false;
+  Pose start;
+  double previous_time = -std::numeric_limits<double>::infinity();
+  // Relocalisation: candidate poses and descriptors (the given set, then a ring of keyframes).
+  size_t desc_dim = 0;
+  std::vector<Pose> cand;
+  std::vector<float> cand_desc;
+  Pose ring[kKeyframeRing];
+  std::vector<float> ring_desc;  // [kKeyframeRing, desc_dim]
+  size_t ring_count = 0, ring_next = 0;
+  std::vector<float> frame_desc, key_desc;
+  std::vector<std::pair<float, int>> ranked;  // (1 - NCC, index: >= 0 candidate, < 0 ring slot -1 - i)
+  uint64_t bytes = 0;
+
+  Camera camera(const Pose& p) const { return Camera{full, p}; }
+  int factor(int level) const { return opt.track_downscale << level; }
+
+  // Renders the keyframe at pose p and builds its points at every level; its coarsest level's
+  // descriptor goes into the ring.
+  Status render_keyframe(const Pose& p) {
+    GS_RETURN_IF_ERROR(renderer.render(*model, camera(p), key_rgb.data(), nullptr, key_alpha.data(), key_depth.data()));
+    for (int l = 0; l < levels; ++l) {
+      KeyLevel& k = key[size_t(l)];
+      const int f = factor(l), w = k.in.width, h = k.in.height;
+      io::box_downsample_float(key_rgb.data(), full.width, full.height, 3, f, lvl_rgb.data());
+      io::box_downsample_float(key_alpha.data(), full.width, full.height, 1, f, lvl_alpha.data());
+      io::box_downsample_float(key_depth.data(), full.width, full.height, 1, f, lvl_depth.data());
+      size_t n = 0;
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const size_t pix = size_t(y) * size_t(w) + size_t(x);
+          const float a = lvl_alpha[pix];
+          if (!(a > 0.5f)) continue;
+          const float z = lvl_depth[pix] / a;
+          if (!(z > 1e-3f) || !std::isfinite(z)) continue;
+          k.xyz[3 * n] = z * ((float(x) + 0.5f) - k.in.cx) / k.in.fx;
+          k.xyz[3 * n + 1] = z * ((float(y) + 0.5f) - k.in.cy) / k.in.fy;
+          k.xyz[3 * n + 2] = z;
+          for (int c = 0; c < 3; ++c) k.rgb[3 * n + size_t(c)] = lvl_rgb[3 * pix + size_t(c)];
+          ++n;
+        }
+      k.n = n;
+      if (l == levels - 1) describe(lvl_rgb.data(), size_t(w) * size_t(h), key_desc.data());  // lvl_rgb: the coarsest level
+    }
+    key_pose = p;
+    have_key = true;
+    ++keyframes;
+    return Status::Ok();
+  }
+
+  // The registrar plans the Gaussians it keeps at its first decode: one registration from pose p
+  // (of the model's own render there) at the first call that may allocate, so track() never does.
+  bool registrar_warm = false;
+  Status warm_registrar(const Pose& p) {
+    if (registrar_warm) return Status::Ok();
+    GS_RETURN_IF_ERROR(renderer.render(*model, camera(p), key_rgb.data()));
+    const io::Image8 img = io::image_from_float_rgb(key_rgb.data(), full.width, full.height);
+    RegisterResult rr;
+    GS_RETURN_IF_ERROR(registrar->register_view(img.pixels.data(), full, p, &rr));
+    registrar_warm = true;
+    have_key = false;  // the keyframe buffers held the render
+    return Status::Ok();
+  }
+
+  // The keyframe joins the relocalisation candidates (once a frame was placed with it).
+  void keep_keyframe() {
+    std::copy(key_desc.begin(), key_desc.end(), ring_desc.begin() + std::ptrdiff_t(ring_next * desc_dim));
+    ring[ring_next] = key_pose;
+    ring_next = (ring_next + 1) % kKeyframeRing;
+    ring_count = std::min(ring_count + 1, kKeyframeRing);
+  }
+
+  // The frame's pyramid (each level box-filtered from the full frame).
+  void prepare(const uint8_t* rgb) {
+    for (int l = 0; l < levels; ++l) io::box_downsample_rgb(rgb, full.width, full.height, factor(l), frame[size_t(l)].rgb.data());
+  }
+
+  // The keyframe's level-l points warped by rel (keyframe camera -> frame camera) into the frame:
+  // Huber cost, squared residual, counts and, with jacobian, the normal equations. A point that
+  // leaves the frame costs a full-delta residual (as in registration), so leaving is not free.
+  void evaluate(int l, const Pose& rel, bool jacobian, Sums* total) {
+    const KeyLevel& k = key[size_t(l)];
+    const FrameLevel& fr = frame[size_t(l)];
+    const size_t chunks = (k.n + kChunk - 1) / kChunk;
+    const float fx = fr.in.fx, fy = fr.in.fy, cx = fr.in.cx, cy = fr.in.cy;
+    const int w = fr.in.width, h = fr.in.height;
+    const double out_cost = detail::huber_cost(2 * kHuberDelta, kHuberDelta);
+    auto body = [&](size_t cb, size_t ce, int) {
+      for (size_t c = cb; c < ce; ++c) {
+        Sums s;
+        s.clear();
+        const size_t end = std::min(k.n, (c + 1) * kChunk);
+        for (size_t i = c * kChunk; i < end; ++i) {
+          const float* X = k.xyz.data() + 3 * i;
+          float m[3];
+          for (int r = 0; r < 3; ++r) m[r] = rel.R[3 * r] * X[0] + rel.R[3 * r + 1] * X[1] + rel.R[3 * r + 2] * X[2] + rel.t[r];
+          ++s.used;
+          if (!(m[2] > 1e-3f)) {
+            s.cost += out_cost;
+            continue;
+          }
+          const float iz = 1.0f / m[2];
+          const float u = fx * m[0] * iz + cx - 0.5f, v = fy * m[1] * iz + cy - 0.5f;  // continuous pixel, centres at integers
+          const float x0f = std::floor(u), y0f = std::floor(v);
+          if (!(x0f >= 0 && y0f >= 0 && x0f + 1 < float(w) && y0f + 1 < float(h))) {
+            s.cost += out_cost;
+            continue;
+          }
+          const int x0 = int(x0f), y0 = int(y0f);
+          const float ax = u - x0f, ay = v - y0f;
+          const float* p00 = fr.rgb.data() + (size_t(y0) * size_t(w) + size_t(x0)) * 3;
+          const float* p10 = p00 + 3;
+          const float* p01 = p00 + size_t(w) * 3;
+          const float* p11 = p01 + 3;
+          double r[3], cu[3], cv[3];
+          for (int q = 0; q < 3; ++q) {
+            const float top = p00[q] + ax * (p10[q] - p00[q]), bottom = p01[q] + ax * (p11[q] - p01[q]);
+            const double value = double(top + ay * (bottom - top));
+            s.sum += value, s.sq += value * value;
+            r[q] = value - double(k.rgb[3 * i + size_t(q)]);
+            cu[q] = double((p10[q] - p00[q]) + ay * ((p11[q] - p01[q]) - (p10[q] - p00[q])));
+            cv[q] = double(bottom - top);
+          }
+          const double se = r[0] * r[0] + r[1] * r[1] + r[2] * r[2], rn = std::sqrt(se);
+          ++s.inside;
+          s.se += se;
+          s.cost += detail::huber_cost(rn, kHuberDelta);
+          if (!jacobian) continue;
+          const double md[3] = {m[0], m[1], m[2]};
+          double du[6], dv[6];
+          detail::projection_twist_jacobian(md, fx, fy, du, dv);
+          const double wgt = detail::huber_weight(rn, kHuberDelta);
+          for (int q = 0; q < 3; ++q) {
+            double J[6];
+            for (int j = 0; j < 6; ++j) J[j] = cu[q] * du[j] + cv[q] * dv[j];
+            for (int a = 0, e = 0; a < 6; ++a) {
+              s.b[a] += wgt * J[a] * r[q];
+              for (int b = a; b < 6; ++b, ++e) s.A[e] += wgt * J[a] * J[b];
+            }
+          }
+        }
+        partial[c] = s;
+      }
+    };
+    if (pool && chunks > 1)
+      pool->parallel_for(chunks, 1, body);
+    else
+      body(0, chunks, 0);
+    total->clear();
+    for (size_t c = 0; c < chunks; ++c) total->add(partial[c]);
+  }
+
+  static double mean_cost(const Sums& s) { return s.used ? s.cost / double(s.used) : INFINITY; }
+
+  // Levenberg-Marquardt on the left twist of rel at level l; returns the final sums at rel. Every
+  // trial is evaluated with its normal equations, so an accepted trial needs no second pass.
+  Sums align_level(int l, Pose* rel, int* iterations) {
+    Sums s;
+    evaluate(l, *rel, true, &s);
+    double c = mean_cost(s);
+    if (!std::isfinite(c)) return s;
+    double lambda = 1e-3;
+    for (int it = 0; it < opt.iterations_per_level; ++it) {
+      detail::Mat6 A;
+      detail::Vec6 b;
+      for (int a = 0, e = 0; a < 6; ++a)
+        for (int bb = a; bb < 6; ++bb, ++e) A(a, bb) = A(bb, a) = s.A[e];
+      for (int a = 0; a < 6; ++a) b(a) = s.b[a];
+      bool accepted = false;
+      for (int attempt = 0; attempt < 5 && !accepted; ++attempt) {
+        double xi[6];
+        detail::damped_step(A, b, lambda, 0.1, 0.1 * extent, xi);
+        Pose trial = *rel;
+        apply_left_twist(xi, &trial);
+        Sums st;
+        evaluate(l, trial, true, &st);
+        ++*iterations;
+        const double ct = mean_cost(st);
+        if (ct < c) {
+          const double decrease = (c - ct) / std::max(c, 1e-30);
+          *rel = trial;
+          s = st;
+          c = ct;
+          lambda = std::max(lambda / 3, 1e-7);
+          accepted = true;
+          const double rot = std::sqrt(xi[3] * xi[3] + xi[4] * xi[4] + xi[5] * xi[5]);
+          const double tr = std::sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
+          if ((rot < 2e-5 && tr < 2e-5 * extent) || decrease < 1e-5) return s;
+        } else {
+          lambda *= 4;
+        }
+      }
+      if (!accepted) break;
+    }
+    return s;
+  }
+
+  // Aligns the prepared frame to the keyframe from pose p (coarse to fine); the pose and the
+  // finest level's sums come back.
+  Sums align(Pose* p, int* iterations) {
+    Pose rel = relative(*p, key_pose);
+    Sums s;
+    s.clear();
+    for (int l = levels - 1; l >= 0; --l) s = align_level(l, &rel, iterations);
+    *p = compose(rel, key_pose);
+    return s;
+  }
+
+  // The verdict's figures. The explained variance is measured against the frame's own variance
+  // where the keyframe's points land, not over the whole frame: against the whole frame, an object
+  // on a plain background is largely "explained" by any pose that overlays its silhouette (a pose
+  // 127 degrees off explained 0.82 of the test object's frame).
+  void fill_stats(const Sums& s, TrackResult* out) const {
+    const FrameLevel& f = frame[0];
+    const double n = 3.0 * double(s.inside);
+    const double mse = s.inside ? s.se / n : INFINITY;
+    const double variance = s.inside ? std::max(s.sq / n - (s.sum / n) * (s.sum / n), 0.0) : 0.0;
+    out->rmse = std::sqrt(mse);
+    out->explained = variance > 0 && std::isfinite(mse) ? 1.0 - mse / variance : 0.0;
+    out->coverage = double(s.inside) / (double(f.in.width) * double(f.in.height));
+  }
+
+  bool good(const Sums& s, const TrackResult& r) const {
+    return s.used > 0 && double(s.inside) >= kMinInside * double(s.used) && r.rmse <= opt.max_rmse &&
+           r.explained >= opt.min_explained && r.coverage >= opt.min_coverage;
+  }
+
+  Pose predict(double time) const {
+    if (!opt.motion_model || history < 2) return last[0];
+    double xi[6];
+    left_difference(last[1], last[0], xi);  // the last step
+    const double dt_last = last_time[0] - last_time[1], dt = time - last_time[0];
+    const double f = dt_last > 0 ? std::min(dt / dt_last, 3.0) : 1.0;
+    for (double& v : xi) v *= f;
+    Pose p = last[0];
+    apply_left_twist(xi, &p);
+    return p;
+  }
+
+  void remember(const Pose& p, double time) {
+    last[1] = last[0];
+    last_time[1] = last_time[0];
+    last[0] = p;
+    last_time[0] = time;
+    history = std::min(history + 1, 2);
+  }
+
+  // Ranks the candidates and the keyframe ring by their descriptors against the frame's.
+  void rank() {
+    const FrameLevel& c = frame[size_t(levels - 1)];
+    describe(c.rgb.data(), size_t(c.in.width) * size_t(c.in.height), frame_desc.data());
+    ranked.clear();
+    auto dist = [&](const float* d) {
+      double dot = 0;
+      for (size_t i = 0; i < desc_dim; ++i) dot += double(d[i]) * frame_desc[i];
+      return float(1.0 - dot);
+    };
+    for (size_t i = 0; i < cand.size(); ++i) ranked.emplace_back(dist(cand_desc.data() + i * desc_dim), int(i));
+    for (size_t i = 0; i < ring_count; ++i) ranked.emplace_back(dist(ring_desc.data() + i * desc_dim), -1 - int(i));
+    std::sort(ranked.begin(), ranked.end());
+  }
+
+  // Registration from the best-ranked poses (and first from the last pose when the previous frame
+  // was placed); the first `converged` one that the tracker's own check confirms wins.
+  Status relocalize(const uint8_t* rgb, TrackResult* out, int* iterations, bool* found) {
+    *found = false;
+    rank();
+    const int tries = std::max(0, opt.relocalize_candidates);
+    int tried = 0;
+    for (int i = -1; i < int(ranked.size()) && tried < tries + (placed ? 1 : 0); ++i) {
+      Pose from;
+      if (i < 0) {
+        if (!placed) continue;
+        from = last[0];
+      } else {
+        const int id = ranked[size_t(i)].second;
+        from = id >= 0 ? cand[size_t(id)] : ring[size_t(-1 - id)];
+      }
+      ++tried;
+      RegisterResult rr;
+      GS_RETURN_IF_ERROR(registrar->register_view(rgb, full, from, &rr));
+      *iterations += rr.iterations;
+      if (!rr.converged()) continue;
+      Pose p = rr.pose;
+      GS_RETURN_IF_ERROR(render_keyframe(p));
+      const Sums s = align(&p, iterations);
+      fill_stats(s, out);
+      if (!good(s, *out)) continue;
+      out->pose = p;
+      out->new_keyframe = true;
+      *found = true;
+      return Status::Ok();
+    }
+    return Status::Ok();
+  }
 };
 
 Tracker::Tracker() : impl_(new Impl) {}
 Tracker::~Tracker() = default;
 
-Expected<std::unique_ptr<Tracker>> Tracker::create(const model::HybridModel&, const PinholeIntrinsics&, const TrackOptions&,
-                                                   platform::ThreadPool*, const simd::KernelTable*) {
-  return Status(StatusCode::kUnsupported, "the tracker is not built yet");
+Expected<std::unique_ptr<Tracker>> Tracker::create(const model::HybridModel& model, const PinholeIntrinsics& frame,
+                                                   const TrackOptions& options, platform::ThreadPool* pool,
+                                                   const simd::KernelTable* kernels) {
+  if (frame.width <= 0 || frame.height <= 0 || !(frame.fx > 0) || !(frame.fy > 0) || !std::isfinite(frame.cx) ||
+      !std::isfinite(frame.cy))
+    return invalid_argument("tracker: invalid frame intrinsics (size " + std::to_string(frame.width) + "x" +
+                            std::to_string(frame.height) + ", positive focal lengths expected)");
+  if (options.track_downscale < 1 || options.track_downscale > 16)
+    return invalid_argument("tracker: track_downscale " + std::to_string(options.track_downscale) + " is not in 1..16");
+  if (options.levels < 1 || options.levels > 6)
+    return invalid_argument("tracker: levels " + std::to_string(options.levels) + " is not in 1..6");
+  if (options.iterations_per_level < 1)
+    return invalid_argument("tracker: iterations_per_level must be at least 1");
+  const int coarsest = options.track_downscale << (options.levels - 1);
+  if (frame.width / coarsest < 8 || frame.height / coarsest < 6)
+    return invalid_argument("tracker: a " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
+                            " frame is too small for " + std::to_string(options.levels) + " levels below 1/" +
+                            std::to_string(options.track_downscale) + " (the coarsest must be at least 8x6)");
+  std::unique_ptr<Tracker> t(new Tracker());
+  Impl& d = *t->impl_;
+  d.model = &model;
+  d.opt = options;
+  d.pool = pool;
+  d.full = frame;
+  d.levels = options.levels;
+  d.extent = model.scene_extent > 0 ? model.scene_extent : 1.0;
+  model::ModelRenderOptions ro;
+  ro.fixed_point_raster = options.fixed_point;
+  ro.int8_mlp = options.int8_mlp;
+  for (int c = 0; c < 3; ++c) ro.background[c] = options.background[c];
+  GS_RETURN_IF_ERROR(d.renderer.set_options(ro));
+  GS_RETURN_IF_ERROR(d.renderer.init(model, frame.width, frame.height, pool, kernels));
+  RegisterOptions reg = options.relocalize;
+  reg.fixed_point = options.fixed_point;
+  for (int c = 0; c < 3; ++c) reg.background[c] = options.background[c];
+  Expected<std::unique_ptr<Registrar>> r = Registrar::create(model, frame.width, frame.height, reg, pool, kernels);
+  if (!r.ok()) return r.status();
+  d.registrar = std::move(r).value();
+  const size_t px = size_t(frame.width) * size_t(frame.height);
+  d.key_rgb.assign(3 * px, 0.0f);
+  d.key_alpha.assign(px, 0.0f);
+  d.key_depth.assign(px, 0.0f);
+  const Camera level0 = scaled_camera(Camera{frame, Pose{}}, options.track_downscale);
+  const size_t px0 = size_t(level0.intr.width) * size_t(level0.intr.height);
+  d.lvl_rgb.assign(3 * px0, 0.0f);
+  d.lvl_alpha.assign(px0, 0.0f);
+  d.lvl_depth.assign(px0, 0.0f);
+  d.key.resize(size_t(d.levels));
+  d.frame.resize(size_t(d.levels));
+  uint64_t bytes = (5 * px + 5 * px0) * sizeof(float);
+  for (int l = 0; l < d.levels; ++l) {
+    const PinholeIntrinsics in = scaled_camera(Camera{frame, Pose{}}, d.factor(l)).intr;
+    const size_t n = size_t(in.width) * size_t(in.height);
+    d.key[size_t(l)].in = d.frame[size_t(l)].in = in;
+    d.key[size_t(l)].xyz.assign(3 * n, 0.0f);
+    d.key[size_t(l)].rgb.assign(3 * n, 0.0f);
+    d.frame[size_t(l)].rgb.assign(3 * n, 0.0f);
+    bytes += 9 * n * sizeof(float);
+  }
+  d.partial.resize((px0 + kChunk - 1) / kChunk);
+  const PinholeIntrinsics& coarse = d.frame[size_t(d.levels - 1)].in;
+  d.desc_dim = size_t(coarse.width) * size_t(coarse.height);
+  d.ring_desc.assign(kKeyframeRing * d.desc_dim, 0.0f);
+  d.frame_desc.assign(d.desc_dim, 0.0f);
+  d.key_desc.assign(d.desc_dim, 0.0f);
+  d.ranked.reserve(kKeyframeRing);
+  d.bytes = bytes + d.partial.size() * sizeof(Sums) + (kKeyframeRing + 1) * d.desc_dim * sizeof(float) +
+            d.registrar->planned_bytes();
+  return t;
 }
-Status Tracker::set_candidates(const std::vector<Pose>&) { return Status(StatusCode::kUnsupported, "not built yet"); }
-void Tracker::reset(const Pose&) {}
-void Tracker::reset() {}
-Status Tracker::track(const uint8_t*, double, TrackResult*) { return Status(StatusCode::kUnsupported, "not built yet"); }
+
+Status Tracker::set_candidates(const std::vector<Pose>& poses) {
+  Impl& d = *impl_;
+  d.cand = poses;
+  d.cand_desc.assign(poses.size() * d.desc_dim, 0.0f);
+  d.ranked.reserve(poses.size() + kKeyframeRing);
+  const int f = d.factor(d.levels - 1);
+  for (size_t i = 0; i < poses.size(); ++i) {
+    GS_RETURN_IF_ERROR(d.renderer.render(*d.model, d.camera(poses[i]), d.key_rgb.data()));
+    io::box_downsample_float(d.key_rgb.data(), d.full.width, d.full.height, 3, f, d.lvl_rgb.data());
+    describe(d.lvl_rgb.data(), d.desc_dim, d.cand_desc.data() + i * d.desc_dim);
+  }
+  d.have_key = false;  // the keyframe buffers held the candidates' renders
+  return poses.empty() ? Status::Ok() : d.warm_registrar(poses[0]);
+}
+
+Status Tracker::reset(const Pose& start) {
+  GS_RETURN_IF_ERROR(impl_->warm_registrar(start));
+  impl_->start = start;
+  impl_->have_start = true;
+  impl_->placed = false;
+  impl_->history = 0;
+  return Status::Ok();
+}
+
+void Tracker::reset() {
+  impl_->have_start = false;
+  impl_->placed = false;
+  impl_->history = 0;
+}
+
+Status Tracker::track(const uint8_t* rgb, double time, TrackResult* out) {
+  Impl& d = *impl_;
+  if (!rgb || !out) return invalid_argument("tracker: null frame or result");
+  if (!std::isfinite(time) || time < d.previous_time)
+    return invalid_argument("tracker: frame time " + std::to_string(time) + " s is not after the previous frame's " +
+                            std::to_string(d.previous_time) + " s");
+  d.previous_time = time;
+  const uint64_t t0 = platform::now_ns();
+  *out = TrackResult{};
+  d.prepare(rgb);
+  const uint64_t t1 = platform::now_ns();
+  uint64_t t_align = 0, t_key = 0, t_reloc = 0;
+  bool placed = false;
+  if (d.placed || d.have_start) {
+    Pose p = d.placed ? d.predict(time) : d.start;
+    d.have_start = false;
+    if (!d.have_key || !d.placed) {  // a start pose, or the keyframe is gone: render at the start
+      const uint64_t k0 = platform::now_ns();
+      GS_RETURN_IF_ERROR(d.render_keyframe(p));
+      out->new_keyframe = true;
+      t_key += platform::now_ns() - k0;
+    }
+    const uint64_t a0 = platform::now_ns();
+    const Pose predicted = p;
+    Sums s = d.align(&p, &out->iterations);
+    d.fill_stats(s, out);
+    t_align += platform::now_ns() - a0;
+    // A frame-to-frame move far beyond a hand's is a look-alike pose, not the camera's: relocalise.
+    const bool plausible = rotation_error_deg(p, predicted) <= d.opt.max_correction_deg &&
+                           centre_distance(p, predicted) <= d.opt.max_correction_translation * d.extent;
+    placed = plausible && d.good(s, *out);
+    if (placed) {
+      const bool far = rotation_error_deg(p, d.key_pose) > d.opt.keyframe_rotation_deg ||
+                       centre_distance(p, d.key_pose) > d.opt.keyframe_translation * d.extent ||
+                       out->rmse > d.opt.keyframe_rmse;
+      if (far) {  // a new keyframe at the pose found, and the frame aligned to it once more
+        const uint64_t k0 = platform::now_ns();
+        GS_RETURN_IF_ERROR(d.render_keyframe(p));
+        out->new_keyframe = true;
+        t_key += platform::now_ns() - k0;
+        const uint64_t a1 = platform::now_ns();
+        Pose q = p;
+        s = d.align(&q, &out->iterations);
+        TrackResult again = *out;
+        d.fill_stats(s, &again);
+        if (d.good(s, again)) p = q, *out = again;
+        t_align += platform::now_ns() - a1;
+      }
+      out->pose = p;
+      out->verdict = TrackVerdict::kTracking;
+    }
+  }
+  if (!placed) {
+    const uint64_t r0 = platform::now_ns();
+    bool found = false;
+    GS_RETURN_IF_ERROR(d.relocalize(rgb, out, &out->iterations, &found));
+    t_reloc = platform::now_ns() - r0;
+    if (found) {
+      out->verdict = TrackVerdict::kRelocalized;
+      placed = true;
+    } else {
+      out->verdict = TrackVerdict::kLost;
+      d.history = 0;
+    }
+  }
+  if (placed) d.remember(out->pose, time);
+  if (placed && out->new_keyframe) d.keep_keyframe();
+  d.placed = placed;
+  out->keyframes = d.keyframes;
+  const uint64_t t_end = platform::now_ns();
+  out->ms.prepare = double(t1 - t0) * 1e-6;
+  out->ms.align = double(t_align) * 1e-6;
+  out->ms.keyframe = double(t_key) * 1e-6;
+  out->ms.relocalize = double(t_reloc) * 1e-6;
+  out->ms.total = double(t_end - t0) * 1e-6;
+  return Status::Ok();
+}
+
 const TrackOptions& Tracker::options() const { return impl_->opt; }
-uint64_t Tracker::planned_bytes() const { return 0; }
+uint64_t Tracker::planned_bytes() const { return impl_->bytes; }
 
 }  // namespace gs::pose

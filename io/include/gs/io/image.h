@@ -56,6 +56,21 @@ inline void box_downsample_rgb(const uint8_t* rgb, int width, int height, int s,
                        for (size_t c = 0; c < 3; ++c) out[3 * i + c] = float(sum[c]) * norm;
                      });
 }
+// Mean of each s x s block of a float image [H, W, c], c <= 3 channels, into [H / s, W / s, c]
+// (remainder dropped; float sums in row-major block order). No allocation.
+inline void box_downsample_float(const float* src, int width, int height, int channels, int s, float* out) {
+  const float norm = 1.0f / float(s * s);
+  const size_t nc = size_t(channels);
+  box_filter<std::array<float, 3>>(
+      width, height, s, width / s, height / s,
+      [&](std::array<float, 3>& sum, int x, int y) {
+        const float* p = src + (size_t(y) * size_t(width) + size_t(x)) * nc;
+        for (size_t k = 0; k < nc; ++k) sum[k] += p[k];
+      },
+      [&](size_t i, const std::array<float, 3>& sum) {
+        for (size_t k = 0; k < nc; ++k) out[i * nc + k] = sum[k] * norm;
+      });
+}
 // The same mean rounded to 8 bits, [out_h, out_w, 3] (normally H / s, W / s; at least 1: a block
 // past the image's edge reuses its last row / column).
 inline void box_downsample_rgb8(const uint8_t* rgb, int width, int height, int s, int out_w, int out_h, uint8_t* out) {

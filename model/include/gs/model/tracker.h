@@ -23,6 +23,7 @@
 
 namespace gs::platform { class ThreadPool; }
 namespace gs::simd { struct KernelTable; }
+namespace gs::model { struct CompactModel; }
 
 namespace gs::pose {
 
@@ -35,14 +36,29 @@ struct TrackOptions {
   // exceeds keyframe_rmse.
   double keyframe_rotation_deg = 6.0, keyframe_translation = 0.05, keyframe_rmse = 0.06;
   // Verdict of an aligned frame: `tracking` when the RMSE over colour values in [0, 1] is at most
-  // max_rmse, the render explains at least min_explained of the frame's variance and the model
-  // covers at least min_coverage of it; otherwise the tracker relocalises.
-  double max_rmse = 0.12, min_explained = 0.5, min_coverage = 0.3;
+  // max_rmse, the keyframe explains at least min_explained of the frame's variance where its
+  // points land, and they cover at least min_coverage of the frame; otherwise the tracker
+  // relocalises.
+  double max_rmse = 0.12, min_explained = 0.5, min_coverage = 0.05;
   bool motion_model = true;        // predict from the last two poses (constant velocity)
+  // An alignment that moves the pose further than this from the prediction (degrees; translation
+  // in units of the scene extent) found a look-alike, not the camera: the frame is relocalised.
+  double max_correction_deg = 10.0, max_correction_translation = 0.1;
   int relocalize_candidates = 3;   // registrations from the best-ranked candidates when lost
-  RegisterOptions relocalize;      // the registrations' options (finest_downscale, verdict, ...)
-  bool fixed_point = false;        // keyframe and verdict renders with the fixed-point blending
+  // The registrations' options (their background and fixed_point are the tracker's own); by
+  // default they end at half resolution.
+  RegisterOptions relocalize = half_resolution_registration();
+  bool fixed_point = false;        // keyframe renders with the fixed-point blending
+  // Non-null: the decoder MLPs of the keyframe renders run as int8 with this compact model's
+  // weights (the model tracked must be its dequantize(); kept alive by the caller).
+  const model::CompactModel* int8_mlp = nullptr;
   float background[3] = {0, 0, 0}; // the colour behind the model (the one it was trained on)
+
+  static RegisterOptions half_resolution_registration() {
+    RegisterOptions r;
+    r.finest_downscale = 2;
+    return r;
+  }
 };
 
 enum class TrackVerdict { kTracking, kRelocalized, kLost };
@@ -53,7 +69,7 @@ struct TrackStageMs {
   double prepare = 0;     // the frame's box filter and pyramid
   double align = 0;       // direct alignment to the keyframe
   double keyframe = 0;    // decoding and rendering keyframes
-  double verdict = 0;     // the residual, explained variance and coverage of the result
+  double verdict = 0;     // a separate verdict check (0: the verdict comes from the alignment's own sums)
   double relocalize = 0;  // descriptor ranking and registrations when lost
   double total = 0;
 };
@@ -77,11 +93,12 @@ class Tracker {
                                                    const simd::KernelTable* kernels = nullptr);
   ~Tracker();
   // Candidate poses for relocalisation (e.g. the training views): each is rendered once and
-  // described; replaces the earlier set. Allocates.
+  // described; replaces the earlier set. Allocates (and the first call of this or reset(start)
+  // plans the relocalisation's registrar with one registration).
   Status set_candidates(const std::vector<Pose>& poses);
   // The next frame is aligned from this pose (a known start); without it, or after reset(), the
-  // next frame is relocalised from the candidates.
-  void reset(const Pose& start);
+  // next frame is relocalised from the candidates (and the keyframes placed so far).
+  Status reset(const Pose& start);
   void reset();
   // One RGB frame [H, W, 3] (8-bit) of the size given at create(), at time_seconds (used by the
   // motion model). Errors (not verdicts): a null frame, times that go backwards. Allocates nothing.
