@@ -32,7 +32,6 @@ namespace {
 
 constexpr size_t kChunk = 256;          // keyframe points per partial sum (fixed: sums do not depend on threads)
 constexpr size_t kKeyframeRing = 16;    // recent keyframes kept as relocalisation candidates
-constexpr double kHuberDelta = 0.1;     // per-pixel colour residual norm where the Huber weight starts to fall
 constexpr double kMinInside = 0.5;      // a frame whose keyframe points mostly leave it is not tracked
 
 // Sums of one chunk of keyframe points (or of all): the upper triangle of J^T W J, J^T W r, the
@@ -133,6 +132,7 @@ struct Tracker::Impl {
   std::vector<FrameLevel> frame;
   std::vector<Sums> partial;
   Pose key_pose;
+  double key_rmse = -1;
   bool have_key = false;
   uint64_t keyframes = 0;
   // Motion: the last two tracked poses and times; `placed` while the previous frame had a pose.
@@ -184,6 +184,7 @@ struct Tracker::Impl {
       if (l == levels - 1) describe(lvl_rgb.data(), size_t(w) * size_t(h), key_desc.data());  // lvl_rgb: the coarsest level
     }
     key_pose = p;
+    key_rmse = -1;  // set by the next frame's alignment (its own frame's residual is the model's alone)
     have_key = true;
     ++keyframes;
     return Status::Ok();
@@ -219,13 +220,13 @@ struct Tracker::Impl {
   // The keyframe's level-l points warped by rel (keyframe camera -> frame camera) into the frame:
   // Huber cost, squared residual, counts and, with jacobian, the normal equations. A point that
   // leaves the frame costs a full-delta residual (as in registration), so leaving is not free.
-  void evaluate(int l, const Pose& rel, bool jacobian, Sums* total) {
+  void evaluate(int l, const Pose& rel, bool jacobian, double delta, Sums* total) {
     const KeyLevel& k = key[size_t(l)];
     const FrameLevel& fr = frame[size_t(l)];
     const size_t chunks = (k.n + kChunk - 1) / kChunk;
     const float fx = fr.in.fx, fy = fr.in.fy, cx = fr.in.cx, cy = fr.in.cy;
     const int w = fr.in.width, h = fr.in.height;
-    const double out_cost = detail::huber_cost(2 * kHuberDelta, kHuberDelta);
+    const double out_cost = detail::huber_cost(2 * delta, delta);
     auto body = [&](size_t cb, size_t ce, int) {
       for (size_t c = cb; c < ce; ++c) {
         Sums s;
@@ -265,12 +266,12 @@ struct Tracker::Impl {
           const double se = r[0] * r[0] + r[1] * r[1] + r[2] * r[2], rn = std::sqrt(se);
           ++s.inside;
           s.se += se;
-          s.cost += detail::huber_cost(rn, kHuberDelta);
+          s.cost += detail::huber_cost(rn, delta);
           if (!jacobian) continue;
           const double md[3] = {m[0], m[1], m[2]};
           double du[6], dv[6];
           detail::projection_twist_jacobian(md, fx, fy, du, dv);
-          const double wgt = detail::huber_weight(rn, kHuberDelta);
+          const double wgt = detail::huber_weight(rn, delta);
           for (int q = 0; q < 3; ++q) {
             double J[6];
             for (int j = 0; j < 6; ++j) J[j] = cu[q] * du[j] + cv[q] * dv[j];
@@ -295,9 +296,9 @@ struct Tracker::Impl {
 
   // Levenberg-Marquardt on the left twist of rel at level l; returns the final sums at rel. Every
   // trial is evaluated with its normal equations, so an accepted trial needs no second pass.
-  Sums align_level(int l, Pose* rel, int* iterations) {
+  Sums align_level(int l, Pose* rel, int* iterations, double delta) {
     Sums s;
-    evaluate(l, *rel, true, &s);
+    evaluate(l, *rel, true, delta, &s);
     double c = mean_cost(s);
     if (!std::isfinite(c)) return s;
     double lambda = 1e-3;
@@ -314,7 +315,7 @@ struct Tracker::Impl {
         Pose trial = *rel;
         apply_left_twist(xi, &trial);
         Sums st;
-        evaluate(l, trial, true, &st);
+        evaluate(l, trial, true, delta, &st);
         ++*iterations;
         const double ct = mean_cost(st);
         if (ct < c) {
@@ -342,7 +343,7 @@ struct Tracker::Impl {
     Pose rel = relative(*p, key_pose);
     Sums s;
     s.clear();
-    for (int l = levels - 1; l >= 0; --l) s = align_level(l, &rel, iterations);
+    for (int l = levels - 1; l >= 0; --l) s = align_level(l, &rel, iterations, opt.huber_delta);
     *p = compose(rel, key_pose);
     return s;
   }
@@ -450,6 +451,8 @@ Expected<std::unique_ptr<Tracker>> Tracker::create(const model::HybridModel& mod
     return invalid_argument("tracker: track_downscale " + std::to_string(options.track_downscale) + " is not in 1..16");
   if (options.levels < 1 || options.levels > 6)
     return invalid_argument("tracker: levels " + std::to_string(options.levels) + " is not in 1..6");
+  if (!(options.huber_delta > 0) || !std::isfinite(options.huber_delta))
+    return invalid_argument("tracker: huber_delta must be positive");
   if (options.iterations_per_level < 1)
     return invalid_argument("tracker: iterations_per_level must be at least 1");
   const int coarsest = options.track_downscale << (options.levels - 1);
@@ -572,9 +575,10 @@ Status Tracker::track(const uint8_t* rgb, double time, TrackResult* out) {
                            centre_distance(p, predicted) <= d.opt.max_correction_translation * d.extent;
     placed = plausible && d.good(s, *out);
     if (placed) {
+      if (d.key_rmse < 0) d.key_rmse = out->rmse;
       const bool far = rotation_error_deg(p, d.key_pose) > d.opt.keyframe_rotation_deg ||
                        centre_distance(p, d.key_pose) > d.opt.keyframe_translation * d.extent ||
-                       out->rmse > d.opt.keyframe_rmse;
+                       out->rmse > d.opt.keyframe_rmse_growth * d.key_rmse;
       if (far) {  // a new keyframe at the pose found, and the frame aligned to it once more
         const uint64_t k0 = platform::now_ns();
         GS_RETURN_IF_ERROR(d.render_keyframe(p));
