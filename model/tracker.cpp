@@ -231,6 +231,7 @@ struct Tracker::Impl {
       for (size_t c = cb; c < ce; ++c) {
         Sums s;
         s.clear();
+        float fA[21] = {}, fb[6] = {};
         const size_t end = std::min(k.n, (c + 1) * kChunk);
         for (size_t i = c * kChunk; i < end; ++i) {
           const float* X = k.xyz.data() + 3 * i;
@@ -254,33 +255,41 @@ struct Tracker::Impl {
           const float* p10 = p00 + 3;
           const float* p01 = p00 + size_t(w) * 3;
           const float* p11 = p01 + 3;
-          double r[3], cu[3], cv[3];
+          float r[3], cu[3], cv[3];
           for (int q = 0; q < 3; ++q) {
             const float top = p00[q] + ax * (p10[q] - p00[q]), bottom = p01[q] + ax * (p11[q] - p01[q]);
-            const double value = double(top + ay * (bottom - top));
-            s.sum += value, s.sq += value * value;
-            r[q] = value - double(k.rgb[3 * i + size_t(q)]);
-            cu[q] = double((p10[q] - p00[q]) + ay * ((p11[q] - p01[q]) - (p10[q] - p00[q])));
-            cv[q] = double(bottom - top);
+            const float value = top + ay * (bottom - top);
+            s.sum += value, s.sq += double(value) * value;
+            r[q] = value - k.rgb[3 * i + size_t(q)];
+            cu[q] = (p10[q] - p00[q]) + ay * ((p11[q] - p01[q]) - (p10[q] - p00[q]));
+            cv[q] = bottom - top;
           }
-          const double se = r[0] * r[0] + r[1] * r[1] + r[2] * r[2], rn = std::sqrt(se);
+          const double se = double(r[0]) * r[0] + double(r[1]) * r[1] + double(r[2]) * r[2], rn = std::sqrt(se);
           ++s.inside;
           s.se += se;
           s.cost += detail::huber_cost(rn, delta);
           if (!jacobian) continue;
-          const double md[3] = {m[0], m[1], m[2]};
-          double du[6], dv[6];
-          detail::projection_twist_jacobian(md, fx, fy, du, dv);
-          const double wgt = detail::huber_weight(rn, delta);
-          for (int q = 0; q < 3; ++q) {
-            double J[6];
-            for (int j = 0; j < 6; ++j) J[j] = cu[q] * du[j] + cv[q] * dv[j];
-            for (int a = 0, e = 0; a < 6; ++a) {
-              s.b[a] += wgt * J[a] * r[q];
-              for (int b = a; b < 6; ++b, ++e) s.A[e] += wgt * J[a] * J[b];
-            }
+          // J_q = cu_q du + cv_q dv per channel q, so sum_q J_q J_q^T = guu du du^T + guv (du dv^T +
+          // dv du^T) + gvv dv dv^T and sum_q J_q r_q = bu du + bv dv: the colour channels fold into
+          // five scalars before the 6 x 6 sums (float within a chunk, double across chunks).
+          const float wgt = float(detail::huber_weight(rn, delta));
+          const float guu = wgt * (cu[0] * cu[0] + cu[1] * cu[1] + cu[2] * cu[2]);
+          const float guv = wgt * (cu[0] * cv[0] + cu[1] * cv[1] + cu[2] * cv[2]);
+          const float gvv = wgt * (cv[0] * cv[0] + cv[1] * cv[1] + cv[2] * cv[2]);
+          const float bu = wgt * (cu[0] * r[0] + cu[1] * r[1] + cu[2] * r[2]);
+          const float bv = wgt * (cv[0] * r[0] + cv[1] * r[1] + cv[2] * r[2]);
+          // d(u, v) / d(left twist) of the projection (detail::projection_twist_jacobian in float).
+          const float x = m[0], y = m[1], iz2 = iz * iz;
+          const float du[6] = {fx * iz, 0.0f, -fx * x * iz2, -fx * x * y * iz2, fx * (1.0f + x * x * iz2), -fx * y * iz};
+          const float dv[6] = {0.0f, fy * iz, -fy * y * iz2, -fy * (1.0f + y * y * iz2), fy * x * y * iz2, fy * x * iz};
+          for (int a = 0, e = 0; a < 6; ++a) {
+            fb[a] += du[a] * bu + dv[a] * bv;
+            const float ua = guu * du[a] + guv * dv[a], va = guv * du[a] + gvv * dv[a];
+            for (int b = a; b < 6; ++b, ++e) fA[e] += ua * du[b] + va * dv[b];
           }
         }
+        for (int e = 0; e < 21; ++e) s.A[e] = fA[e];
+        for (int a = 0; a < 6; ++a) s.b[a] = fb[a];
         partial[c] = s;
       }
     };
