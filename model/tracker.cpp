@@ -613,6 +613,7 @@ Status Tracker::track(const uint8_t* rgb, double time, TrackResult* out) {
     if (found) {
       out->verdict = TrackVerdict::kRelocalized;
       placed = true;
+      d.history = 0;  // no velocity across a jump
     } else {
       out->verdict = TrackVerdict::kLost;
       d.history = 0;
