@@ -32,7 +32,10 @@ namespace {
 
 constexpr size_t kChunk = 256;          // keyframe points per partial sum (fixed: sums do not depend on threads)
 constexpr size_t kKeyframeRing = 16;    // recent keyframes kept as relocalisation candidates
-constexpr double kMinInside = 0.5;      // a frame whose keyframe points mostly leave it is not tracked
+constexpr double kMinInside = 0.5;
+// No RMSE up to this is suspicious, however small the stream's usual one (a model's own renders:
+// 0.001; real photos against a good model: 0.012-0.02).
+constexpr double kRmseFloor = 0.03;      // a frame whose keyframe points mostly leave it is not tracked
 
 // Sums of one chunk of keyframe points (or of all): the upper triangle of J^T W J, J^T W r, the
 // Huber cost, the squared colour residual and the counts.
@@ -373,7 +376,44 @@ struct Tracker::Impl {
 
   bool good(const Sums& s, const TrackResult& r) const {
     return s.used > 0 && double(s.inside) >= kMinInside * double(s.used) && r.rmse <= opt.max_rmse &&
-           r.explained >= opt.min_explained && r.coverage >= opt.min_coverage;
+           r.explained >= opt.min_explained && r.coverage >= opt.min_coverage &&
+           (opt.max_rmse_growth <= 0 || recent_count < kRecentMin || r.rmse <= kRmseFloor ||
+            r.rmse <= opt.max_rmse_growth * recent_median());
+  }
+
+  // The RMSE of the last kRecent placed frames (a ring) and its median.
+  static constexpr size_t kRecent = 20, kRecentMin = 3;
+  double recent[kRecent] = {};
+  size_t recent_count = 0, recent_next = 0;
+  void remember_rmse(double rmse) {
+    recent[recent_next] = rmse;
+    recent_next = (recent_next + 1) % kRecent;
+    recent_count = std::min(recent_count + 1, kRecent);
+  }
+  double recent_median() const {
+    double v[kRecent];
+    std::copy(recent, recent + recent_count, v);
+    std::nth_element(v, v + recent_count / 2, v + recent_count);
+    return v[recent_count / 2];
+  }
+
+  // A registration from pose p (the tracked frame's, when it moved far): true with the registered
+  // pose in *p when it converged, the keyframe rendered there and the frame aligned to it passes.
+  Status verify(const uint8_t* rgb, Pose* p, TrackResult* out, bool* ok) {
+    *ok = false;
+    RegisterResult rr;
+    GS_RETURN_IF_ERROR(registrar->register_view(rgb, full, *p, &rr));
+    out->iterations += rr.iterations;
+    if (!rr.converged()) return Status::Ok();
+    Pose q = rr.pose;
+    GS_RETURN_IF_ERROR(render_keyframe(q));
+    out->new_keyframe = true;
+    const Sums s = align(&q, &out->iterations);
+    fill_stats(s, out);
+    if (!good(s, *out)) return Status::Ok();
+    *p = q;
+    *ok = true;
+    return Status::Ok();
   }
 
   Pose predict(double time) const {
@@ -583,6 +623,11 @@ Status Tracker::track(const uint8_t* rgb, double time, TrackResult* out) {
     const bool plausible = rotation_error_deg(p, predicted) <= d.opt.max_correction_deg &&
                            centre_distance(p, predicted) <= d.opt.max_correction_translation * d.extent;
     placed = plausible && d.good(s, *out);
+    if (placed && d.opt.verify_correction_deg > 0 && rotation_error_deg(p, predicted) > d.opt.verify_correction_deg) {
+      const uint64_t r0 = platform::now_ns();
+      GS_RETURN_IF_ERROR(d.verify(rgb, &p, out, &placed));
+      t_reloc += platform::now_ns() - r0;
+    }
     if (placed) {
       if (d.key_rmse < 0) d.key_rmse = out->rmse;
       const bool far = rotation_error_deg(p, d.key_pose) > d.opt.keyframe_rotation_deg ||
@@ -609,7 +654,7 @@ Status Tracker::track(const uint8_t* rgb, double time, TrackResult* out) {
     const uint64_t r0 = platform::now_ns();
     bool found = false;
     GS_RETURN_IF_ERROR(d.relocalize(rgb, out, &out->iterations, &found));
-    t_reloc = platform::now_ns() - r0;
+    t_reloc += platform::now_ns() - r0;
     if (found) {
       out->verdict = TrackVerdict::kRelocalized;
       placed = true;
@@ -619,7 +664,7 @@ Status Tracker::track(const uint8_t* rgb, double time, TrackResult* out) {
       d.history = 0;
     }
   }
-  if (placed) d.remember(out->pose, time);
+  if (placed) d.remember(out->pose, time), d.remember_rmse(out->rmse);
   if (placed && out->new_keyframe) d.keep_keyframe();
   d.placed = placed;
   out->keyframes = d.keyframes;

@@ -50,6 +50,14 @@ struct TrackOptions {
   // An alignment that moves the pose further than this from the prediction (degrees; translation
   // in units of the scene extent) found a look-alike, not the camera: the frame is relocalised.
   double max_correction_deg = 10.0, max_correction_translation = 0.1;
+  // A frame whose alignment moved it further than this from the prediction (degrees; 0: never) is
+  // checked by a registration from the pose found (its wider start candidates and anti-aliased
+  // verdict): a 30 frames per second stream moves less between frames, photos taken one by one more.
+  double verify_correction_deg = 3.0;
+  // A placed frame's RMSE may be at most this many times the median RMSE of the last 20 placed
+  // frames (the model's own residual on this stream; 0: no bound): a look-alike pose on a weakly
+  // textured object can explain much of the frame's variance, but not as well as the true pose.
+  double max_rmse_growth = 2.5;
   int relocalize_candidates = 3;   // registrations from the best-ranked candidates when lost
   // The registrations' options (their background and fixed_point are the tracker's own); by
   // default they end at half resolution.
