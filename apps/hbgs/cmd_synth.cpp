@@ -1,7 +1,10 @@
 // SPDX-License-Identifier: MIT
 // `hbgs synth`: writes the built-in ray-traced ground-truth scene, or with --object an object
 // capture (COLMAP + transforms.json, alpha or masks), as a dataset (via hbgs_synth), refusing to
-// overwrite an existing dataset unless --force is given.
+// overwrite an existing dataset unless --force is given; or a camera path through either scene as
+// frames with its true poses (--path-frames: the sweep for ingestion, --trajectory: the hand-held
+// test trajectory for tracking, with a video).
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -29,6 +32,13 @@ struct SynthArgs {
   bool quiet = false;
   int path_frames = 0;  // > 0: render a camera path (frames + true poses) instead of the dataset
   double path_sweep = 100.0;
+  bool trajectory = false;  // the hand-held test trajectory instead of the dataset
+  int frames = 300;
+  double fps = 30.0;
+  std::string background = "white";  // --trajectory --object: the colour behind the subject
+  int samples = 0;                    // samples per pixel axis; 0: the dataset's (2, --object: 4)
+  bool no_video = false;
+  std::string ffmpeg = "ffmpeg";
   bool object = false;  // the object capture instead of the scene
   int views = 48;
   std::string object_background = "transparent";
@@ -94,12 +104,34 @@ int run_synth_object(const SynthArgs& a) {
   return kExitOk;
 }
 
+// A camera path's files in out are refused without --force; with it they are removed first (a
+// longer earlier path would leave frames behind that a video pattern would read).
+int prepare_path_output(const SynthArgs& a) {
+  const fs::path root(a.out);
+  std::error_code ec;
+  const char* const names[] = {hbgs::synth::kPathFramesDir, hbgs::synth::kPathTruePosesDir, hbgs::synth::kPathTumFile,
+                                hbgs::synth::kPathJsonFile, hbgs::synth::kPathVideoFile};
+  for (const char* name : names)
+    if (fs::exists(root / name, ec) && !a.force)
+      return fail("synth", (root / name).string() + " already exists; pass --force to overwrite it");
+  for (const char* name : names) {
+    fs::remove_all(root / name, ec);
+    if (ec) return fail("synth", "cannot remove the previous " + (root / name).string() + ": " + ec.message());
+  }
+  return kExitOk;
+}
+
+void print_path_files(const fs::path& root, const hbgs::synth::PathSummary& s, bool video_asked) {
+  std::printf("  frames:     %s\n", (root / hbgs::synth::kPathFramesDir).string().c_str());
+  if (s.video_written) std::printf("  video:      %s\n", (root / hbgs::synth::kPathVideoFile).string().c_str());
+  else if (video_asked) std::printf("  video:      none (%s)\n", s.video_note.c_str());
+  std::printf("  true poses: %s (TUM), %s (COLMAP)\n  path:       %s\n", (root / hbgs::synth::kPathTumFile).string().c_str(),
+              (root / hbgs::synth::kPathTruePosesDir).string().c_str(), (root / hbgs::synth::kPathJsonFile).string().c_str());
+}
+
 // `--path-frames N`: frames of a hand-held style camera path for video-ingestion tests.
 int run_synth_path(const SynthArgs& a) {
-  std::error_code ec;
-  const fs::path frames = fs::path(a.out) / "frames";
-  if (fs::exists(frames, ec) && !a.force)
-    return fail("synth", frames.string() + " already exists; pass --force to overwrite it");
+  if (int rc = prepare_path_output(a); rc != kExitOk) return rc;
   hbgs::synth::PathOptions o;
   o.seed = a.seed;
   o.width = a.width;
@@ -108,17 +140,58 @@ int run_synth_path(const SynthArgs& a) {
   o.sweep_deg = a.path_sweep;
   o.threads = a.threads;
   Stopwatch sw;
-  const gs::Status st = hbgs::synth::generate_path(o, a.out);
-  if (!st.ok()) return fail("synth", st.to_string());
+  const gs::Expected<hbgs::synth::PathSummary> summary = hbgs::synth::generate_path(o, a.out);
+  if (!summary.ok()) return fail("synth", summary.status().to_string());
   std::printf("hbgs synth: %d path frames of %dx%d (%.0f degree sweep), seed %llu, %.2f s\n", o.frames, o.width,
               o.height, o.sweep_deg, static_cast<unsigned long long>(a.seed), sw.seconds());
-  std::printf("  frames:     %s\n  true poses: %s\n", frames.string().c_str(),
-              (fs::path(a.out) / "true_poses").string().c_str());
+  print_path_files(fs::path(a.out), *summary, false);
+  return kExitOk;
+}
+
+// `--trajectory [--object]`: the hand-held test trajectory (frames, video, true poses).
+int run_synth_trajectory(const SynthArgs& a) {
+  hbgs::synth::PathOptions o;
+  o.kind = hbgs::synth::PathOptions::Kind::kHandheld;
+  o.scene = a.object ? hbgs::synth::PathOptions::SceneKind::kObject : hbgs::synth::PathOptions::SceneKind::kScene;
+  o.seed = a.seed;
+  o.width = a.object && !a.size_given ? 200 : a.width;
+  o.height = a.object && !a.size_given ? 200 : a.height;
+  o.frames = a.frames;
+  o.fps = a.fps;
+  o.samples_per_axis = a.samples > 0 ? a.samples : a.object ? 4 : 2;  // as the datasets are rendered
+  if (a.object) {
+    const gs::Expected<gs::model::Background> bg = gs::model::parse_background(a.background);
+    if (!bg.ok()) return fail("synth", "--background: " + bg.status().message());
+    if (bg->random) return fail("synth", "--background: frames need one colour (the one the model renders on), not random");
+    std::copy(bg->rgb, bg->rgb + 3, o.background);
+  }
+  o.video = !a.no_video;
+  o.ffmpeg = a.ffmpeg;
+  o.threads = a.threads;
+  o.verbose = !a.quiet;
+  if (const gs::Status st = hbgs::synth::validate_path(o); !st.ok()) return fail("synth", st.message());
+  if (int rc = prepare_path_output(a); rc != kExitOk) return rc;
+  const gs::Expected<hbgs::synth::PathSummary> summary = hbgs::synth::generate_path(o, a.out);
+  if (!summary.ok()) return fail("synth", summary.status().to_string());
+  const hbgs::synth::PathEvents& ev = summary->events;
+  std::printf("hbgs synth --trajectory: %d frames of %dx%d at %g fps (%.1f s) through the %s, seed %llu; pan at frames "
+              "%d-%d (%g degrees at %g degrees/s), cut at frame %d; %.2f s (rendering %.2f s, video %.2f s)\n",
+              o.frames, o.width, o.height, o.fps, o.frames / o.fps,
+              a.object ? ("object capture's subject on " + a.background).c_str() : "built-in scene",
+              static_cast<unsigned long long>(a.seed), ev.pan_first, ev.pan_last, o.pan_deg, o.pan_speed_deg_s, ev.cut,
+              summary->seconds, summary->render_seconds, summary->video_seconds);
+  if (!summary->video_note.empty()) std::fprintf(stderr, "hbgs synth: %s\n", summary->video_note.c_str());
+  print_path_files(fs::path(a.out), *summary, o.video);
   return kExitOk;
 }
 
 int run_synth(const SynthArgs& a) {
   if (a.object && a.path_frames > 0) return fail("synth", "--object and --path-frames exclude each other");
+  if (a.trajectory && a.path_frames > 0) return fail("synth", "--trajectory and --path-frames exclude each other");
+  if (a.trajectory && a.object_background != "transparent")
+    return fail("synth", "--trajectory --object renders the subject alone on --background; --object-background " +
+                             a.object_background + " is not supported");
+  if (a.trajectory) return run_synth_trajectory(a);
   if (a.object) return run_synth_object(a);
   if (a.path_frames > 0) return run_synth_path(a);
   if (int rc = prepare_output(a); rc != kExitOk) return rc;
@@ -181,6 +254,26 @@ Command add_synth_command(CLI::App& parent) {
   sub->add_option("--path-sweep", args->path_sweep, "Azimuth the path sweeps, degrees")
       ->capture_default_str()
       ->check(CLI::Range(1.0, 360.0));
+  sub->add_flag("--trajectory", args->trajectory,
+                "Instead of the dataset, a hand-held test trajectory through the scene (with --object, through the object "
+                "capture's subject on --background) for tracking: --frames frames at --fps with hand shake, one 60 degree "
+                "pan at 60 degrees/s and one cut to a distant viewpoint, at the dataset's size (256x192, --object: "
+                "200x200); writes OUT/frames/, OUT/video.mp4 (ffmpeg, H.264), the true poses as OUT/true_trajectory.txt "
+                "(TUM) and OUT/true_poses/ (COLMAP), and OUT/trajectory.json (fps, pan frames, cut frame, scene)");
+  sub->add_option("--frames", args->frames, "--trajectory: number of frames (at least ~8 s of them)")
+      ->capture_default_str()
+      ->check(CLI::Range(2, 100000));
+  sub->add_option("--fps", args->fps, "--trajectory: frames per second")->capture_default_str()->check(CLI::Range(1.0, 1000.0));
+  sub->add_option("--background", args->background,
+                  "--trajectory --object: the colour behind the subject, the one the model was trained on "
+                  "(black, white or R,G,B)")
+      ->capture_default_str()
+      ->check(background_validator());
+  sub->add_option("--samples", args->samples,
+                  "--trajectory: anti-aliasing samples per pixel axis (default: the dataset's, 2, --object: 4)")
+      ->check(CLI::Range(1, 16));
+  sub->add_flag("--no-video", args->no_video, "--trajectory: write the frames and poses only, no video.mp4");
+  sub->add_option("--ffmpeg", args->ffmpeg, "--trajectory: the ffmpeg program that encodes the video")->capture_default_str();
   sub->add_flag("--object", args->object,
                 "Instead of the scene, an object capture: a small textured object on a pedestal seen from cameras on the "
                 "upper hemisphere (three rings, 360 degrees), written as a COLMAP dataset (images/, masks/, sparse/0) and "

@@ -43,7 +43,7 @@ TEST_CASE("TUM trajectory: written centres and camera-to-world quaternions read 
   CHECK(io::tum_line(p) == "2.500000 -1 -2 -3 0 0 0 1");
 }
 
-TEST_CASE("TUM trajectory: comments and blank lines are skipped; malformed lines are refused by line") {
+TEST_CASE("TUM trajectory: comments and blank lines are skipped, malformed lines are refused by line") {
   Expected<std::vector<io::TimedPose>> ok = io::parse_tum_trajectory("# header\n\n1.0 0 0 0 0 0 0 1\r\n  2 1 2 3 0 0 0 2\n", "a.tum");
   REQUIRE_MESSAGE(ok.ok(), ok.status().to_string());
   REQUIRE(ok->size() == 2);

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
-// Pieces shared by the synth datasets (generate_scene, generate_object): the camera model and
-// look-at poses, seeded sparse points with their visibility tracks, and the COLMAP model of
-// rendered views. Defined in generate.cpp.
+// Pieces shared by the synth datasets (generate_scene, generate_object) and camera paths
+// (generate_path): the scenes' camera rigs, the camera model and look-at poses, seeded sparse
+// points with their visibility tracks, and the COLMAP model of rendered views. Defined in
+// generate.cpp (object_camera_distance in object.cpp).
 #pragma once
 
 #include <cstdint>
@@ -23,6 +24,16 @@ struct ViewSetup {
   double tvec[3];
 };
 
+// The point every camera of the built-in scene looks at (plus jitter), metres: the middle of the
+// object layout.
+inline constexpr double kSceneTarget[3] = {0.1, 0.2, 0.45};
+// The object capture's ring elevations, degrees: the pedestal's side, a typical three-quarter view,
+// and from above.
+inline constexpr double kObjectRingElevationsDeg[3] = {15.0, 35.0, 60.0};
+// The object capture's camera distance from kObjectCentre for these intrinsics: 1.1 x the distance
+// at which the subject's bounding sphere touches the narrower side of the image.
+double object_camera_distance(const gs::PinholeIntrinsics& K);
+
 // fx = fy = 0.9 width rounded to a quarter pixel (exact in float); principal point centred.
 double focal_for(int width);
 gs::PinholeIntrinsics synth_intrinsics(int width, int height);
@@ -31,6 +42,8 @@ gs::Pose look_at(const double eye[3], const double at[3]);
 // The view from `eye` to `at`, rounded through COLMAP's (qvec, tvec) so a reader of images.txt gets
 // exactly the pose the images are rendered with.
 ViewSetup make_view(const gs::PinholeIntrinsics& intr, const double eye[3], const double at[3]);
+// The same for any world-to-camera pose.
+ViewSetup make_view(const gs::PinholeIntrinsics& intr, const gs::Pose& pose);
 
 struct Observation {
   uint32_t view;

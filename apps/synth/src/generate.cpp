@@ -57,8 +57,12 @@ gs::Pose look_at(const double eye[3], const double at[3]) {
 }
 
 ViewSetup make_view(const gs::PinholeIntrinsics& intr, const double eye[3], const double at[3]) {
+  return make_view(intr, look_at(eye, at));
+}
+
+ViewSetup make_view(const gs::PinholeIntrinsics& intr, const gs::Pose& pose) {
   ViewSetup v;
-  gs::io::pose_to_colmap(look_at(eye, at), v.qvec, v.tvec);
+  gs::io::pose_to_colmap(pose, v.qvec, v.tvec);
   v.camera.intr = intr;
   v.camera.pose = gs::io::pose_from_colmap(v.qvec, v.tvec);
   return v;
@@ -191,8 +195,7 @@ using detail::synth_intrinsics;
 using detail::ViewSetup;
 
 constexpr double kPi = 3.14159265358979323846;
-// Point every camera looks at (plus jitter), metres: the middle of the object layout.
-constexpr double kTarget[3] = {0.1, 0.2, 0.45};
+constexpr const double (&kTarget)[3] = detail::kSceneTarget;
 
 std::vector<ViewSetup> make_views(const SynthOptions& opt) {
   detail::Rng rng(detail::hash_combine(opt.seed, 0xca3e7a5ULL));
@@ -327,68 +330,6 @@ gs::Expected<SynthSummary> generate_scene(const SynthOptions& options, const std
   } catch (const std::exception& e) {
     return gs::Status(gs::StatusCode::kInternal, std::string("synth: ") + e.what());
   }
-}
-
-namespace {
-
-gs::Status validate_path(const PathOptions& o) {
-  if (o.width < 8 || o.height < 8 || o.width > gs::io::kMaxImageSide || o.height > gs::io::kMaxImageSide)
-    return gs::invalid_argument("synth path: image size " + std::to_string(o.width) + "x" + std::to_string(o.height) +
-                                " out of range");
-  if (o.frames < 2 || o.frames > 100000) return gs::invalid_argument("synth path: frames must be in [2, 100000]");
-  if (!(o.sweep_deg > 0.0 && o.sweep_deg <= 360.0)) return gs::invalid_argument("synth path: sweep must be in (0, 360]");
-  if (o.samples_per_axis < 1 || o.samples_per_axis > 16) return gs::invalid_argument("synth path: samples out of range");
-  return gs::Status::Ok();
-}
-
-}  // namespace
-
-std::vector<gs::Camera> make_path_cameras(const PathOptions& o) {
-  std::vector<gs::Camera> cams;
-  if (!validate_path(o).ok()) return cams;
-  const gs::PinholeIntrinsics intr = synth_intrinsics(o.width, o.height);
-  for (int i = 0; i < o.frames; ++i) {
-    const double s = double(i) / double(o.frames - 1);  // 0..1 along the path
-    const double az = (-90.0 - o.sweep_deg / 2 + o.sweep_deg * s) * kPi / 180;
-    const double el = (20.0 + 6.0 * std::sin(2.0 * kPi * s)) * kPi / 180;  // the hand rises and falls
-    const double radius = 4.4 + 0.3 * std::sin(3.0 * kPi * s);
-    const double eye[3] = {kTarget[0] + radius * std::cos(el) * std::cos(az),
-                           kTarget[1] + radius * std::cos(el) * std::sin(az), kTarget[2] + radius * std::sin(el)};
-    const double at[3] = {kTarget[0] + 0.15 * std::sin(4.0 * kPi * s), kTarget[1] + 0.1 * std::cos(3.0 * kPi * s),
-                          kTarget[2] + 0.08 * std::sin(5.0 * kPi * s)};
-    cams.push_back(detail::make_view(intr, eye, at).camera);
-  }
-  return cams;
-}
-
-gs::Status generate_path(const PathOptions& o, const std::string& out_dir) {
-  GS_RETURN_IF_ERROR(validate_path(o));
-  auto scene_or = Scene::create(o.seed);
-  if (!scene_or.ok()) return scene_or.status();
-  const Scene& scene = *scene_or.value();
-  const std::vector<gs::Camera> cams = make_path_cameras(o);
-  namespace fs = std::filesystem;
-  const fs::path frames = fs::path(out_dir) / "frames";
-  std::error_code ec;
-  fs::create_directories(frames, ec);
-  if (ec) return gs::io_error("synth path: cannot create " + frames.string() + ": " + ec.message());
-
-  gs::io::ColmapModel model;
-  model.cameras.push_back(detail::colmap_pinhole(cams[0].intr));
-  for (int i = 0; i < o.frames; ++i) {
-    char name[32];
-    std::snprintf(name, sizeof name, "frame_%06d.png", i);
-    gs::io::ColmapImage im;
-    im.id = uint32_t(i + 1);
-    im.camera_id = 1;
-    im.name = name;
-    gs::io::pose_to_colmap(cams[size_t(i)].pose, im.qvec, im.tvec);
-    model.images.push_back(im);
-    const gs::io::Image8 img =
-        scene.render(cams[size_t(i)], o.samples_per_axis, detail::hash_combine(o.seed, 0x2000000ULL + uint64_t(i)), o.threads);
-    GS_RETURN_IF_ERROR(gs::io::write_png((frames / name).string(), img));
-  }
-  return gs::io::write_colmap_text(model, (fs::path(out_dir) / "true_poses").string());
 }
 
 }  // namespace hbgs::synth

@@ -21,11 +21,15 @@
 #include "procedural.h"
 
 namespace hbgs::synth {
+
+double detail::object_camera_distance(const gs::PinholeIntrinsics& K) {
+  const double half_x = std::atan(0.5 * K.width / K.fx), half_y = std::atan(0.5 * K.height / K.fy);
+  return 1.1 * kObjectRadius / std::sin(std::min(half_x, half_y));
+}
+
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-// Ring elevations, degrees: the pedestal's side, a typical three-quarter view, and from above.
-constexpr double kRingElevations[3] = {15.0, 35.0, 60.0};
 // Every llffhold-th view (by name) is a test view, as gs::io::DatasetOptions::llffhold splits the
 // COLMAP model; the transforms files repeat that split.
 constexpr int kTestEvery = 8;
@@ -46,20 +50,14 @@ gs::Status validate(const ObjectOptions& o) {
   return gs::Status::Ok();
 }
 
-// 1.1 x the distance at which the subject's bounding sphere touches the narrower side of the image.
-double camera_distance(const gs::PinholeIntrinsics& K) {
-  const double half_x = std::atan(0.5 * K.width / K.fx), half_y = std::atan(0.5 * K.height / K.fy);
-  return 1.1 * kObjectRadius / std::sin(std::min(half_x, half_y));
-}
-
 std::vector<detail::ViewSetup> make_views(const ObjectOptions& opt) {
   detail::Rng rng(detail::hash_combine(opt.seed, 0x0b1ec7ca3ULL));
   const gs::PinholeIntrinsics intr = detail::synth_intrinsics(opt.width, opt.height);
-  const double distance = camera_distance(intr);
+  const double distance = detail::object_camera_distance(intr);
   std::vector<detail::ViewSetup> views;
   for (int ring = 0; ring < 3; ++ring) {
     const int n = ring < 2 ? opt.views / 3 : opt.views - 2 * (opt.views / 3);
-    const double phase = rng.uniform(0.0, 360.0), el = kRingElevations[ring] * kPi / 180;
+    const double phase = rng.uniform(0.0, 360.0), el = detail::kObjectRingElevationsDeg[ring] * kPi / 180;
     for (int i = 0; i < n; ++i) {
       const double az = (phase + 360.0 * i / n) * kPi / 180;
       const double eye[3] = {kObjectCentre[0] + distance * std::cos(el) * std::cos(az) + rng.uniform(-0.005, 0.005),
@@ -115,7 +113,7 @@ gs::Expected<ObjectSummary> generate_impl(const ObjectOptions& opt, const std::s
   const bool cluttered = opt.background == ObjectOptions::Background::kCluttered;
   const std::vector<detail::ViewSetup> views = make_views(opt);
   const int num_views = int(views.size());
-  auto scene_or = Scene::create_object(opt.seed, cluttered, camera_distance(views.front().camera.intr));
+  auto scene_or = Scene::create_object(opt.seed, cluttered, detail::object_camera_distance(views.front().camera.intr));
   if (!scene_or.ok()) return scene_or.status();
   const Scene& scene = *scene_or.value();
 

@@ -55,23 +55,101 @@ gs::Expected<SynthSummary> generate_scene(const SynthOptions& options, const std
 // written qvec/tvec, and the images are rendered with them.
 std::vector<gs::Camera> make_cameras(const SynthOptions& options);
 
-// A continuous camera path through the scene, like a hand-held phone video: the camera sweeps
-// `sweep_deg` of azimuth in front of the scene (centred on the -y side) while its height and
-// distance drift smoothly and it looks at a slowly wandering point near the scene centre. Used to
-// test video ingestion end to end, where the recovered poses are compared with these.
+// Camera paths through the synth scenes, rendered as video frames with their true poses.
+//
+// kSweep (`hbgs synth --path-frames N`): a continuous path through the built-in scene, like a
+// hand-held phone video: the camera sweeps `sweep_deg` of azimuth in front of the scene (centred on
+// the -y side) while its height and distance drift smoothly and it looks at a slowly wandering point
+// near the scene centre. Used to test video ingestion end to end, where the recovered poses are
+// compared with these.
+//
+// kHandheld (`hbgs synth --trajectory`, with `--object` through the object capture's scene): a test
+// trajectory for tracking, at `fps` frames per second. The camera walks slowly (at most ~3 degrees
+// per second of azimuth about the scene centre, a few degrees of elevation and 3 % of distance
+// drifting) while looking near the centre, with hand shake: smooth seeded wobble of 2 mm RMS per
+// axis in position and 0.08 degrees RMS per axis in rotation (0.14 degrees RMS in all, peaks of
+// about 0.3), each axis a sum of three sinusoids of 0.5-3 Hz, so smooth at 30 fps.
+// Events, in this order:
+//   - a slow turn (2.5 s) of the view direction to pan_deg / 2 right of the centre,
+//   - the pan: a turn of pan_deg about the vertical through the camera at pan_speed_deg_s (speed
+//     ramps of 0.1 s at both ends), from pan_deg / 2 right to pan_deg / 2 left of the centre,
+//   - a slow turn (2.5 s) back to the centre,
+//   - the cut: from frame cut - 1 to frame cut the camera jumps to a distant viewpoint (the other
+//     side of the scene, higher: the built-in scene's orbit, the object capture's top ring) and the
+//     path continues smoothly from there to the end.
+// The pan starts at 0.3 of the duration (or once the first turn fits), the cut at 0.6 of it (or
+// once the pan, the turn back and 0.5 s have passed); at least 1 s follows the cut, so a hand-held
+// path needs about 8 s (237 frames at 30 fps with the default pan).
+// Built-in scene: the walk is ~4.5 m from the layout centre at ~17 degrees elevation on the -y side
+// (the dataset's arc), after the cut ~5 m out at ~30 degrees on the +y side (its orbit). Object:
+// at the object capture's camera distance, first at the middle ring's 35 degrees elevation (seeded
+// azimuth), after the cut at the top ring's 60 degrees on the opposite side.
+// The frames are rendered from the same seeded scene as generate_scene / generate_object with the
+// same seed (so a model trained on that dataset is valid for them), at the same anti-aliasing by
+// default; the object's subject (no background geometry) is composited on `background` with
+// gs::io::composite_rgb8 (the composite training and evaluation compare renders with): pick the
+// colour the model was trained on (`hbgs train --background`, white for the object captures in
+// these docs).
 struct PathOptions {
-  uint64_t seed = 1;         // the scene (same seeds as SynthOptions)
+  enum class Kind { kSweep, kHandheld };
+  enum class SceneKind { kScene, kObject };  // generate_scene's scene, or generate_object's subject
+  Kind kind = Kind::kSweep;
+  SceneKind scene = SceneKind::kScene;       // kSweep: kScene only
+  uint64_t seed = 1;         // the scene (same seeds as SynthOptions / ObjectOptions) and the shake
   int width = 320, height = 240;
   int frames = 90;
-  double sweep_deg = 100.0;
+  double fps = 30.0;         // frame i is at time i / fps (the TUM file; kHandheld's speeds)
+  double sweep_deg = 100.0;  // kSweep
+  double pan_deg = 60.0, pan_speed_deg_s = 60.0;  // kHandheld
+  float background[3] = {1, 1, 1};  // kObject: the colour behind the subject, in [0, 1]
   int samples_per_axis = 2;
-  int threads = 0;
+  int threads = 0;           // 0 = all hardware threads (the output does not depend on it)
+  bool video = false;        // also encode video.mp4 with the ffmpeg command line
+  std::string ffmpeg = "ffmpeg";  // the program (looked up on PATH)
+  bool verbose = false;      // progress on stderr
 };
+
+// Frame indices of the events of a kHandheld path (-1 for kSweep).
+struct PathEvents {
+  int pan_first = -1, pan_last = -1;  // frames whose time lies within the pan (its speed > 0)
+  int cut = -1;                       // the first frame after the jump
+};
+
+struct PathSummary {
+  int frames = 0;
+  PathEvents events;
+  double render_seconds = 0;  // ray tracing and PNG writing
+  double video_seconds = 0;   // ffmpeg
+  double seconds = 0;         // wall time of generate_path
+  bool video_written = false;
+  std::string video_note;     // why the video was skipped (ffmpeg not found, odd image size), else empty
+};
+
+// Checks the options (a hand-held path too short for its pan and cut names the frames it needs).
+gs::Status validate_path(const PathOptions& options);
 // Cameras of the path, in frame order; empty if the options are invalid.
 std::vector<gs::Camera> make_path_cameras(const PathOptions& options);
-// Writes out_dir/frames/frame_000000.png ... and the true poses as a COLMAP text model in
-// out_dir/true_poses/ (images named like the frames, no points).
-gs::Status generate_path(const PathOptions& options, const std::string& out_dir);
+// The events of the path (all -1 if the options are invalid or the path is a sweep).
+PathEvents path_events(const PathOptions& options);
+// Writes out_dir/frames/frame_000000.png ..., the true poses as a COLMAP text model in
+// out_dir/true_poses/ (images named like the frames, no points) and as a TUM trajectory
+// out_dir/true_trajectory.txt (timestamps i / fps), out_dir/trajectory.json (the path's kind, fps,
+// frame count, size and intrinsics, the pan's frames and the cut's frame, the scene: kind, seed,
+// background, the radius of the camera centres of that scene's default dataset's training views,
+// the files), and with options.video out_dir/video.mp4: H.264 (libx264, CRF 18, yuv420p tagged
+// BT.601 limited range, one encoder thread so the file does not depend on the thread count) at
+// fps, by the ffmpeg command line (a phone video's kind of loss: about 31 dB against the frames,
+// most of it the 4:2:0 chroma). Without ffmpeg on PATH, or for an odd width or height (4:2:0 needs even sides), the video
+// is skipped and video_note says why; an ffmpeg that fails is an error with its output.
+// Identical options give identical files.
+gs::Expected<PathSummary> generate_path(const PathOptions& options, const std::string& out_dir);
+
+// File names generate_path writes inside out_dir.
+inline constexpr const char* kPathFramesDir = "frames";
+inline constexpr const char* kPathTruePosesDir = "true_poses";
+inline constexpr const char* kPathTumFile = "true_trajectory.txt";
+inline constexpr const char* kPathJsonFile = "trajectory.json";
+inline constexpr const char* kPathVideoFile = "video.mp4";
 
 // `hbgs synth --object`: an object capture. The subject (a checkered pedestal, radius 0.5 m and
 // 0.1 m high on z = 0, holding five small textured shapes; inside the sphere of radius
