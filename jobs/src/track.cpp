@@ -212,10 +212,11 @@ Status fit_frames(const TrackSetup& s, const std::string& stream, int sw, int sh
                      std::to_string(W) + "x" + std::to_string(H) + "; they are tracked at their own size with the intrinsics scaled");
     return Status::Ok();
   }
+  const std::string camera = std::to_string(s.camera.width) + "x" + std::to_string(s.camera.height);
+  const std::string wanted = std::to_string(W) + "x" + std::to_string(H);
   return invalid_argument(stream + " delivers " + std::to_string(sw) + "x" + std::to_string(sh) + " frames, but the intrinsics are for " +
-                          std::to_string(W) + "x" + std::to_string(H) + " (the dataset's camera " + std::to_string(s.camera.width) + "x" +
-                          std::to_string(s.camera.height) + "), and they are not a uniform scale of it; pass --intrinsics fx,fy,cx,cy "
-                          "for the source's frames");
+                          wanted + " (the dataset's camera" + (camera == wanted ? "" : " " + camera + " at the model's training resolution") +
+                          "), and the frames are not a uniform scale of that; pass --intrinsics fx,fy,cx,cy for the source's frames");
 }
 
 Expected<std::unique_ptr<FrameStream>> open_folder_only(const std::string& source) {
