@@ -32,14 +32,6 @@ namespace fs = std::filesystem;
 
 // ---- The image folder stream ----
 
-bool is_image_name(const std::string& name) {
-  const size_t dot = name.rfind('.');
-  if (dot == std::string::npos || dot == 0) return false;  // no extension, or a hidden file
-  std::string ext = name.substr(dot + 1);
-  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return ext == "png" || ext == "jpg" || ext == "jpeg";
-}
-
 // Announces each file as a frame of the first image's size; decodes it only when its pixels are
 // asked for (a dropped frame is never decoded).
 class ImageFolderStream final : public FrameStream {
@@ -350,17 +342,10 @@ Expected<std::unique_ptr<FrameStream>> open_image_folder_stream(const std::strin
   const std::string where = "image folder " + folder;
   if (!platform::is_directory(folder))
     return io_error(platform::file_exists(folder) ? where + ": not a directory" : "no such file or folder: " + folder);
-  std::vector<std::string> files;
-  std::error_code ec;
-  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
-    std::error_code type_ec;
-    if (it->is_directory(type_ec)) continue;
-    const std::string n = it->path().filename().string();
-    if (is_image_name(n)) files.push_back(n);
-  }
-  if (ec) return io_error(where + ": cannot list: " + ec.message());
+  Expected<std::vector<std::string>> listed = io::list_image_files(folder);  // as capture's ImageFolderSource
+  if (!listed.ok()) return Status(listed.status().code(), where + ": " + listed.status().message());
+  std::vector<std::string> files = std::move(listed).value();
   if (files.empty()) return invalid_argument(where + ": no .png, .jpg or .jpeg images in it");
-  std::sort(files.begin(), files.end());
   Expected<io::Image8> first = io::read_image((fs::path(folder) / files[0]).string(), 3);
   if (!first.ok()) return Status(first.status().code(), where + ": " + first.status().message());
   return std::unique_ptr<FrameStream>(

@@ -5,16 +5,7 @@
 # not built yet: kUnsupported) the test prints "[SKIPPED: ...]", which ctest reports as skipped.
 #   cmake -DOUT=<dir> -DFRAMES=<n expected source frames> [-DREALTIME=1] [-DEMULATOR=...] -P track_e2e.cmake -- <program> <args...>
 cmake_minimum_required(VERSION 3.22)  # quoted if() arguments are strings, not variable names (CMP0054)
-set(cmd ${EMULATOR})
-set(after_dashes OFF)
-math(EXPR last "${CMAKE_ARGC} - 1")
-foreach(i RANGE 1 ${last})
-  if(after_dashes)
-    list(APPEND cmd "${CMAKE_ARGV${i}}")
-  elseif("${CMAKE_ARGV${i}}" STREQUAL "--")
-    set(after_dashes ON)
-  endif()
-endforeach()
+include(${CMAKE_CURRENT_LIST_DIR}/command_after_dashes.cmake)
 file(REMOVE_RECURSE "${OUT}")
 execute_process(COMMAND ${cmd} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
 message("$ ${cmd}\n--- stdout ---\n${out}--- stderr ---\n${err}--- exit code ${rc} ---")
