@@ -429,7 +429,8 @@ Status track_run(const TrackRunOptions& a, const std::function<void(const Tracke
   bool end = false;
   GS_RETURN_IF_ERROR(stream.next(&frame, &end));
   if (end) return invalid_argument(s.stream + " delivered no frames");
-  double next_ms = (clock() - t_open) * 1e3;
+  const double t_first = clock();  // when the first frame was in hand
+  double next_ms = (t_first - t_open) * 1e3;
   s.source_width = frame.width;
   s.source_height = frame.height;
   GS_RETURN_IF_ERROR(fit_frames(setup, s.stream, frame.width, frame.height, &s.intrinsics, &s.downscale, &s.notes));
@@ -455,7 +456,11 @@ Status track_run(const TrackRunOptions& a, const std::function<void(const Tracke
   // The frames.
   Outputs o;
   std::vector<double> ms[7];  // decode, prepare, align, keyframe, verdict, relocalize, total
-  const double wall0 = clock(), src0 = frame.time;
+  // The wall time the first frame is due at: a file's frames are there whenever they are asked for,
+  // so the playback starts now; a camera's frames keep coming while the tracker is set up, so its
+  // clock starts when the first frame was taken (the frames it queued meanwhile are late).
+  const double wall0 = s.live ? t_first : clock(), src0 = frame.time;
+  const double t_loop = clock();
   double prev_time = 0;
   uint64_t prev_sequence = frame.sequence;
   Status failure;
@@ -536,7 +541,7 @@ Status track_run(const TrackRunOptions& a, const std::function<void(const Tracke
     next_ms = (clock() - t_next) * 1e3;
     if (!failure.ok() || end) break;
   }
-  s.seconds = clock() - wall0;
+  s.seconds = clock() - t_loop;
   s.fps = s.seconds > 0 ? double(s.frames - s.dropped) / s.seconds : 0;
   const char* names[7] = {"decode", "prepare", "align", "keyframe", "verdict", "relocalize", "total"};
   for (int k = 0; k < 7; ++k) s.stages.push_back({names[k], mean(ms[k]), median(ms[k]), percentile95(ms[k])});

@@ -103,11 +103,13 @@ class StandInTracker final : public gs::jobs::FrameTracker {
   double cost_;
 };
 
-gs::jobs::TrackerFactory stand_in(Seen* seen, FakeClock* clock = nullptr, double cost = 0) {
+// cost: fake seconds per track(); setup: fake seconds that making the tracker takes.
+gs::jobs::TrackerFactory stand_in(Seen* seen, FakeClock* clock = nullptr, double cost = 0, double setup = 0) {
   return [=](const gs::model::HybridModel&, const gs::PinholeIntrinsics& K, const gs::pose::TrackOptions& o,
              gs::platform::ThreadPool*) -> gs::Expected<std::unique_ptr<gs::jobs::FrameTracker>> {
     seen->K = K;
     seen->options = o;
+    if (clock) clock->now += setup;
     return std::unique_ptr<gs::jobs::FrameTracker>(new StandInTracker(seen, clock, cost));
   };
 }
@@ -483,7 +485,7 @@ struct RealtimeRun {
   FakeClock clock;
 };
 
-void run_realtime(const Fixture& fx, bool realtime, bool live, double cost, RealtimeRun* r) {
+void run_realtime(const Fixture& fx, bool realtime, bool live, double cost, RealtimeRun* r, double setup = 0) {
   gs::jobs::TrackRunOptions o;
   o.input = fx.model;
   o.dataset = fx.dataset;
@@ -500,7 +502,7 @@ void run_realtime(const Fixture& fx, bool realtime, bool live, double cost, Real
     clock->now += s;
     ++clock->sleeps;
   };
-  o.make_tracker = stand_in(&r->seen, clock, cost);
+  o.make_tracker = stand_in(&r->seen, clock, cost, setup);
   const gs::Status st = gs::jobs::track_run(
       o, [r](const TrackedFrame& f) { (f.dropped ? r->dropped : r->tracked).push_back(f.index); }, &r->summary);
   REQUIRE_MESSAGE(st.ok(), st.to_string());
@@ -560,5 +562,21 @@ TEST_CASE("track job: --realtime drops the frames the tracker is too slow for, w
     RealtimeRun slow;
     run_realtime(fx, true, true, 0.045, &slow);
     CHECK(slow.dropped == std::vector<int64_t>{3, 6, 9});
+  }
+  {
+    // Making the tracker takes 200 ms after the first frame was taken. A camera kept delivering
+    // meanwhile: its clock starts at the first frame, so the frames it queued are late and dropped
+    // until the tracker has caught up (by hand, 10 ms per frame: frame 0 tracked at 200 ms, ready at
+    // 210; frames 1-5 (31.25 .. 156.25 ms) are 179 .. 54 ms late: dropped; frame 6 (187.5) is 22.5
+    // late: tracked, ready at 220; 7 (218.75) 1.25 late; 8 and 9 are early and not waited for).
+    RealtimeRun live;
+    run_realtime(fx, true, true, 0.010, &live, 0.2);
+    CHECK(live.dropped == std::vector<int64_t>{1, 2, 3, 4, 5});
+    CHECK(live.clock.sleeps == 0);
+    // A file is played from when the tracker is ready: nothing is late.
+    RealtimeRun file;
+    run_realtime(fx, true, false, 0.010, &file, 0.2);
+    CHECK(file.dropped.empty());
+    CHECK(file.clock.sleeps == 9);
   }
 }

@@ -108,9 +108,11 @@ struct TrackRunOptions {
   // (aligned from the first candidate: the dataset's first training view, or its first view) or a
   // pose "qw qx qy qz tx ty tz" (world-to-camera, COLMAP order, in the dataset's frame).
   std::string start_pose = "candidates";
-  // Behave as a live camera: a file source is paced to its frame times, and a frame whose successor
-  // is already due when the tracker is ready for it (late by one frame interval or more) is dropped
-  // instead of tracked (counted, and reported with dropped = true).
+  // Behave as a live camera: a frame whose successor is already due when the tracker is ready for
+  // it (late by one frame interval or more) is dropped instead of tracked (counted, and reported
+  // with dropped = true). A file source is played from when the tracker is ready, paced to its
+  // frame times; a camera's times count from when its first frame was taken (so what it queued
+  // while the tracker was set up is late).
   bool realtime = false;
   int threads = 0;         // 0: all CPUs
   int64_t max_frames = 0;  // > 0: stop after this many source frames (dropped ones included)
