@@ -176,7 +176,7 @@ Command add_track_command(CLI::App& parent) {
   sub->add_option("--threads", o->threads, "Worker threads (0: all CPUs)")->capture_default_str()->check(CLI::Range(0, 4096));
   sub->add_option("--max-frames", o->max_frames, "Stop after this many source frames (0: all)")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(int64_t(0), int64_t(1000000000000)));
   sub->add_option("--downscale", o->tracker.track_downscale, "Frames are aligned at 1/N of their size")
       ->capture_default_str()
       ->check(CLI::Range(1, 16));
