@@ -24,6 +24,7 @@ constexpr int kExitOk = 0;
 constexpr int kExitRuntime = 1;
 constexpr int kExitUsage = 2;
 constexpr int kExitNotConverged = 3;  // hbgs register: a result whose verdict is not "converged"
+constexpr int kExitNoPose = 3;        // hbgs track: no frame could be placed (every frame lost)
 
 // A registered subcommand: its CLI11 node, and what to run once it has been parsed.
 struct Command {
@@ -44,6 +45,7 @@ Command add_register_command(CLI::App& parent);
 Command add_ingest_command(CLI::App& parent);
 Command add_capture_command(CLI::App& parent);
 Command add_compare_poses_command(CLI::App& parent);
+Command add_track_command(CLI::App& parent);
 
 // `hbgs bench ARGS...` bypasses CLI11 (except `hbgs bench --help`): ARGS go to bench_render as given.
 bool bench_passes_through(int argc, char** argv);

@@ -40,18 +40,20 @@ int main(int argc, char** argv) {
   app.fallthrough(false);
 
 #ifdef HBGS_DEVICE
-  // hbgs-device: the on-device subset (training, evaluation, rendering, registration, compact
-  // files, export; no capture, video or synthetic scenes), linked without FFmpeg, libcamera and
-  // Embree, so its footprint is the library's.
+  // hbgs-device: the on-device subset (training, evaluation, rendering, registration, tracking,
+  // compact files, export; no capture, video or synthetic scenes), linked without FFmpeg, libcamera
+  // and Embree, so its footprint is the library's.
   const hbgs::cli::Command commands[] = {
       hbgs::cli::add_train_command(app),    hbgs::cli::add_eval_command(app),    hbgs::cli::add_render_command(app),
-      hbgs::cli::add_register_command(app), hbgs::cli::add_compact_command(app), hbgs::cli::add_export_command(app),
+      hbgs::cli::add_register_command(app), hbgs::cli::add_track_command(app),   hbgs::cli::add_compact_command(app),
+      hbgs::cli::add_export_command(app),
   };
 #else
   const hbgs::cli::Command commands[] = {
       hbgs::cli::add_synth_command(app),  hbgs::cli::add_train_command(app), hbgs::cli::add_eval_command(app),
       hbgs::cli::add_render_command(app), hbgs::cli::add_demo_command(app),  hbgs::cli::add_bench_command(app),
-      hbgs::cli::add_register_command(app), hbgs::cli::add_ingest_command(app),  hbgs::cli::add_capture_command(app),
+      hbgs::cli::add_register_command(app), hbgs::cli::add_track_command(app),   hbgs::cli::add_ingest_command(app),
+      hbgs::cli::add_capture_command(app),
       hbgs::cli::add_compare_poses_command(app), hbgs::cli::add_compact_command(app), hbgs::cli::add_export_command(app),
       hbgs::cli::add_report_command(app),
   };

@@ -4,31 +4,16 @@
 // stb-based reader and hands out a view of that image's pixels until release.
 #include "gs/capture/image_folder_source.h"
 
-#include <algorithm>
-#include <cctype>
-#include <filesystem>
-#include <system_error>
+#include <utility>
 
 #include "gs/platform/file.h"
 
 namespace gs::capture {
-namespace {
-
-bool is_image_name(const std::string& name) {
-  const size_t dot = name.rfind('.');
-  if (dot == std::string::npos || dot == 0) return false;  // no extension, or a hidden dotfile
-  std::string ext = name.substr(dot + 1);
-  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return ext == "png" || ext == "jpg" || ext == "jpeg";
-}
-
-}  // namespace
 
 ImageFolderSource::ImageFolderSource(std::string folder, double fps)
     : folder_(std::move(folder)), name_("images:" + folder_), fps_(fps > 0 ? fps : 30.0) {}
 
 Status ImageFolderSource::configure(const FrameFormat& requested, FrameFormat* actual) {
-  namespace fs = std::filesystem;
   configured_ = started_ = holding_ = failed_ = first_ready_ = false;
   files_.clear();
   next_ = 0;
@@ -36,16 +21,10 @@ Status ImageFolderSource::configure(const FrameFormat& requested, FrameFormat* a
   if (!platform::is_directory(folder_))
     return io_error(where + (platform::file_exists(folder_) ? ": not a directory" : ": no such folder"));
 
-  std::error_code ec;
-  for (fs::directory_iterator it(folder_, ec), end; !ec && it != end; it.increment(ec)) {
-    std::error_code type_ec;
-    if (it->is_directory(type_ec)) continue;
-    const std::string n = it->path().filename().string();
-    if (is_image_name(n)) files_.push_back(n);
-  }
-  if (ec) return io_error(where + ": cannot list: " + ec.message());
+  Expected<std::vector<std::string>> listed = io::list_image_files(folder_);
+  if (!listed.ok()) return Status(listed.status().code(), where + ": " + listed.status().message());
+  files_ = std::move(listed).value();
   if (files_.empty()) return invalid_argument(where + ": no .png, .jpg or .jpeg images in it");
-  std::sort(files_.begin(), files_.end());
 
   auto first = io::read_image(file_path(0), 3);
   if (!first.ok()) return Status(first.status().code(), where + ": " + first.status().message());

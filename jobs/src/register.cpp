@@ -9,7 +9,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
-#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -24,6 +23,7 @@
 #include "gs/platform/file.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/stats.h"
+#include "camera_input.h"
 
 namespace gs::jobs {
 namespace {
@@ -38,51 +38,12 @@ std::vector<double> colmap_pose(const SceneFrame& frame, const Pose& p) {
   return {q[0], q[1], q[2], q[3], t[0], t[1], t[2]};
 }
 
-// The 7 numbers of a pose text (qw qx qy qz tx ty tz) that pose::parse_pose accepted, in double,
-// the quaternion normalised.
-void parse_colmap_numbers(const std::string& text, double q[4], double t[3]) {
-  std::string spaced = text;
-  std::replace(spaced.begin(), spaced.end(), ',', ' ');
-  std::istringstream in(spaced);
-  double v[7] = {1, 0, 0, 0, 0, 0, 0};
-  for (double& x : v) in >> x;
-  const double n = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3]);
-  for (int i = 0; i < 4; ++i) q[i] = v[i] / n;
-  for (int i = 0; i < 3; ++i) t[i] = v[4 + i];
-}
-
 // Camera-centre distance of two poses, world units.
 double centre_distance(const Pose& a, const Pose& b) {
   double ca[3], cb[3];
   pose::centre(a, ca);
   pose::centre(b, cb);
   return std::sqrt((ca[0] - cb[0]) * (ca[0] - cb[0]) + (ca[1] - cb[1]) * (ca[1] - cb[1]) + (ca[2] - cb[2]) * (ca[2] - cb[2]));
-}
-
-// "fx fy cx cy" (spaces and/or commas): four finite numbers, focal lengths positive.
-Status parse_camera(const std::string& text, PinholeIntrinsics* K) {
-  std::string s = text;
-  std::replace(s.begin(), s.end(), ',', ' ');
-  std::istringstream in(s);
-  std::vector<double> v;
-  std::string tok;
-  while (in >> tok) {
-    size_t used = 0;
-    double x = 0;
-    try {
-      x = std::stod(tok, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != tok.size() || !std::isfinite(x))
-      return invalid_argument("--camera: '" + tok + "' is not a finite number (expected \"fx fy cx cy\")");
-    v.push_back(x);
-  }
-  if (v.size() != 4)
-    return invalid_argument("--camera: expected 4 numbers \"fx fy cx cy\", got " + std::to_string(v.size()));
-  if (!(v[0] > 0) || !(v[1] > 0)) return invalid_argument("--camera: fx and fy must be positive");
-  K->fx = float(v[0]), K->fy = float(v[1]), K->cx = float(v[2]), K->cy = float(v[3]);
-  return Status::Ok();
 }
 
 // The dataset's camera for an image of width x height: the one camera all its views use (identical
@@ -92,33 +53,14 @@ Status parse_camera(const std::string& text, PinholeIntrinsics* K) {
 Status dataset_camera(const std::string& dataset, int width, int height, PinholeIntrinsics* K, std::string* note) {
   Expected<io::DatasetFiles> files = io::read_dataset_files(dataset);
   if (!files.ok()) return invalid_argument("cannot read the dataset's camera (" + files.status().to_string() + "); pass --camera");
-  const io::DatasetFileView* first = nullptr;
-  for (const io::DatasetFileView& v : files->views) {
-    if (!first) {
-      first = &v;
-    } else if (v.camera.width != first->camera.width || v.camera.height != first->camera.height ||
-               v.camera.params != first->camera.params) {
-      return invalid_argument(dataset + ": the views do not share one camera (" + first->name + " and " + v.name +
-                              " differ); pass --camera \"fx fy cx cy\"");
-    }
-  }
-  if (!first) return invalid_argument(dataset + ": no views, so no camera; pass --camera \"fx fy cx cy\"");
-  const io::ColmapCamera& cam = first->camera;
-  // PINHOLE or OPENCV (DatasetFileView::camera): fx, fy, cx, cy first either way.
-  const double fx = cam.params[0], fy = cam.params[1], cx = cam.params[2], cy = cam.params[3];
-  if (cam.model != "PINHOLE")
-    *note = "the dataset's camera has lens distortion (" + cam.model + " terms); the image is used as a pinhole image";
-  double sx = 1, sy = 1;
-  if (width != cam.width || height != cam.height) {
-    sx = double(width) / cam.width, sy = double(height) / cam.height;
-    const long h_loader = std::max(1L, std::lround(double(cam.height) * width / cam.width));
-    if (h_loader != height && std::fabs(sx / sy - 1) > 1e-3)
-      return invalid_argument("the image is " + std::to_string(width) + "x" + std::to_string(height) +
-                              " but the dataset's camera is " + std::to_string(cam.width) + "x" + std::to_string(cam.height) +
-                              " (not a uniform scale of it); pass --camera \"fx fy cx cy\"");
-  }
-  K->fx = float(fx * sx), K->cx = float(cx * sx);
-  K->fy = float(fy * sy), K->cy = float(cy * sy);
+  io::ColmapCamera cam;
+  GS_RETURN_IF_ERROR(shared_dataset_camera(*files, dataset, "pass --camera \"fx fy cx cy\"", &cam, note));
+  if (!is_uniform_scale(cam, width, height))
+    return invalid_argument("the image is " + std::to_string(width) + "x" + std::to_string(height) +
+                            " but the dataset's camera is " + std::to_string(cam.width) + "x" + std::to_string(cam.height) +
+                            " (not a uniform scale of it); pass --camera \"fx fy cx cy\"");
+  const PinholeIntrinsics scaled = scaled_intrinsics(cam, width, height);
+  K->fx = scaled.fx, K->fy = scaled.fy, K->cx = scaled.cx, K->cy = scaled.cy;
   return Status::Ok();
 }
 
@@ -188,7 +130,7 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
   if (a.image.empty()) return invalid_argument("no image to register");
   GS_RETURN_IF_ERROR(pose::parse_pose(a.init, "--init", &s.init));
   PinholeIntrinsics& K = s.intrinsics;
-  if (!a.camera.empty()) GS_RETURN_IF_ERROR(parse_camera(a.camera, &K));
+  if (!a.camera.empty()) GS_RETURN_IF_ERROR(parse_intrinsics_text(a.camera, "--camera", &K));
   if (!platform::file_exists(a.image)) return invalid_argument("image " + a.image + " not found");
 
   // The model (and, without a camera, the dataset whose camera took the image).
@@ -238,7 +180,7 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
   // from the origin float would have lost its translation.
   if (!s.frame.identity()) {
     double q[4], t[3], R[9];
-    parse_colmap_numbers(a.init, q, t);
+    pose_text_numbers(a.init, q, t);
     pose::rotation_from_quaternion(q, R);
     s.init = pose_to_frame(s.frame, R, t);
   }

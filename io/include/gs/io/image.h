@@ -35,6 +35,12 @@ struct ImageInfo {
   bool has_alpha = false;  // grey + alpha or RGBA
 };
 Expected<ImageInfo> read_image_info(const std::string& path);
+// A folder's image files as frame sources play them: the names (not paths) of its .png, .jpg and
+// .jpeg files (any letter case; no hidden files, no sub-folders), sorted byte-wise, so zero-padded
+// names come out in sequence. An empty folder gives an empty list; an unreadable one an io_error
+// "cannot list: <reason>" (callers name the folder).
+bool is_image_file_name(const std::string& name);
+Expected<std::vector<std::string>> list_image_files(const std::string& folder);
 // Box-filter (area) downscale to any size (both <= the source size), fractional taps at the cell
 // borders; for an integer ratio it equals box_downsample_rgb8 (the rounded block mean). Both are
 // gs/io/box_filter.h, the one box filter.
