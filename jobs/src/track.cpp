@@ -83,7 +83,7 @@ class PoseTracker final : public FrameTracker {
  public:
   explicit PoseTracker(std::unique_ptr<pose::Tracker> t) : t_(std::move(t)) {}
   Status set_candidates(const std::vector<Pose>& poses) override { return t_->set_candidates(poses); }
-  void reset(const Pose& start) override { t_->reset(start); }
+  Status reset(const Pose& start) override { return t_->reset(start); }
   void reset() override { t_->reset(); }
   Status track(const uint8_t* rgb, double time, pose::TrackResult* r) override { return t_->track(rgb, time, r); }
   uint64_t planned_bytes() const override { return t_->planned_bytes(); }
@@ -283,7 +283,12 @@ nlohmann::ordered_json summary_json(const TrackRunOptions& a, const TrackRunSumm
             {"iterations_per_level", to.iterations_per_level},
             {"keyframe_rotation_deg", to.keyframe_rotation_deg},
             {"keyframe_translation", to.keyframe_translation},
-            {"keyframe_rmse", to.keyframe_rmse},
+            {"keyframe_rmse_growth", to.keyframe_rmse_growth},
+            {"huber_delta", to.huber_delta},
+            {"max_correction_deg", to.max_correction_deg},
+            {"max_correction_translation", to.max_correction_translation},
+            {"verify_correction_deg", to.verify_correction_deg},
+            {"max_rmse_growth", to.max_rmse_growth},
             {"max_rmse", to.max_rmse},
             {"min_explained", to.min_explained},
             {"min_coverage", to.min_coverage},
@@ -449,7 +454,7 @@ Status track_run(const TrackRunOptions& a, const std::function<void(const Tracke
   FrameTracker& tracker = **made;
   if (!setup.candidates.empty()) GS_RETURN_IF_ERROR(tracker.set_candidates(setup.candidates));
   if (a.start_pose == "candidates") tracker.reset();
-  else tracker.reset(start_pose);
+  else GS_RETURN_IF_ERROR(tracker.reset(start_pose));
   s.planned_bytes = tracker.planned_bytes();
   std::vector<uint8_t> resized(s.downscale > 1 ? size_t(K.width) * size_t(K.height) * 3 : 0);
 

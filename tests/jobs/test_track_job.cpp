@@ -72,9 +72,10 @@ class StandInTracker final : public gs::jobs::FrameTracker {
     seen_->candidates = poses;
     return gs::Status::Ok();
   }
-  void reset(const gs::Pose& start) override {
+  gs::Status reset(const gs::Pose& start) override {
     ++seen_->resets_to_pose;
     seen_->start = start;
+    return gs::Status::Ok();
   }
   void reset() override { ++seen_->resets_to_candidates; }
   gs::Status track(const uint8_t* rgb, double time, gs::pose::TrackResult* r) override {

@@ -75,7 +75,7 @@ class FrameTracker {
  public:
   virtual ~FrameTracker() = default;
   virtual Status set_candidates(const std::vector<Pose>& poses) = 0;
-  virtual void reset(const Pose& start) = 0;
+  virtual Status reset(const Pose& start) = 0;
   virtual void reset() = 0;
   virtual Status track(const uint8_t* rgb, double time_seconds, pose::TrackResult* result) = 0;
   virtual uint64_t planned_bytes() const = 0;
