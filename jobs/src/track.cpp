@@ -331,10 +331,11 @@ Status write_outputs(const TrackRunOptions& a, const pose::TrackOptions& to, con
   }
   GS_RETURN_IF_ERROR(io::write_colmap_text(colmap, s->colmap_dir));
 
-  std::string lost = "# frame time: the frames the tracker could not place (frame: 0-based number in the source; time: seconds since the first frame)\n";
+  // Time first, as in the trajectory: `hbgs compare-poses --lost` reads the first word of a line.
+  std::string lost = "# time frame: the frames the tracker could not place (time: seconds since the first frame; frame: 0-based number in the source)\n";
   char line[64];
   for (const auto& [index, time] : o.lost) {
-    std::snprintf(line, sizeof(line), "%lld %.6f\n", static_cast<long long>(index), time);
+    std::snprintf(line, sizeof(line), "%.6f %lld\n", time, static_cast<long long>(index));
     lost += line;
   }
   GS_RETURN_IF_ERROR(platform::write_file_atomic(s->lost_path, lost));

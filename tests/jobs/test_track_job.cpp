@@ -281,7 +281,7 @@ TEST_CASE("track job: files, JSON lines and verdicts from a stand-in tracker (fr
     std::istringstream in(lost[size_t(k)]);
     long long frame = -1;
     double time = -1;
-    in >> frame >> time;
+    in >> time >> frame;
     CHECK(frame == lost_frames[k]);
     CHECK(time == doctest::Approx(lost_frames[k] / 30.0).epsilon(1e-5));
   }
