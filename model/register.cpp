@@ -636,6 +636,32 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const GaussianCloud& clou
   return r;
 }
 
+Status Registrar::render(const Camera& cam, float* rgb, float* depth, float* alpha) {
+  Impl& d = *impl_;
+  if (!rgb) return invalid_argument("registration render: no colour buffer");
+  if (cam.intr.width > d.max_w || cam.intr.height > d.max_h)
+    return invalid_argument("registration render: " + std::to_string(cam.intr.width) + "x" + std::to_string(cam.intr.height) +
+                            " exceeds the planned " + std::to_string(d.max_w) + "x" + std::to_string(d.max_h));
+  GS_RETURN_IF_ERROR(validate_camera(cam));
+  d.decoded_valid = false;  // the model may have changed since the last call
+  if (d.decode(cam) == 0) {  // nothing in view: the background everywhere
+    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
+    for (size_t i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) rgb[3 * i + size_t(c)] = d.opt.background[c];
+    if (depth) std::fill(depth, depth + n, 0.0f);
+    if (alpha) std::fill(alpha, alpha + n, 0.0f);
+    return Status::Ok();
+  }
+  GS_RETURN_IF_ERROR(d.renderer.forward(cam, d.gaussians(), d.render_options(depth != nullptr), rgb, depth));
+  if (alpha) {
+    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
+    const float* T = d.renderer.final_transmittance();
+    for (size_t i = 0; i < n; ++i) alpha[i] = 1.0f - T[i];
+  }
+  d.polish_render_valid = false;
+  return Status::Ok();
+}
+
 const RegisterOptions& Registrar::options() const { return impl_->opt; }
 RegisterOptions& Registrar::mutable_options() { return impl_->opt; }
 uint64_t Registrar::planned_bytes() const { return impl_->bytes; }

@@ -11,7 +11,6 @@
 #include <limits>
 
 #include "gs/io/image.h"
-#include "gs/model/model_renderer.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
@@ -127,7 +126,6 @@ struct Tracker::Impl {
   PinholeIntrinsics full;
   int levels = 1;
   double extent = 1;
-  model::ModelRenderer renderer;
   std::unique_ptr<Registrar> registrar;
   std::vector<float> key_rgb, key_alpha, key_depth;  // the keyframe render, full resolution
   std::vector<float> lvl_rgb, lvl_alpha, lvl_depth;  // its box-filtered level (scratch)
@@ -162,7 +160,7 @@ struct Tracker::Impl {
   // Renders the keyframe at pose p and builds its points at every level; its coarsest level's
   // descriptor goes into the ring.
   Status render_keyframe(const Pose& p) {
-    GS_RETURN_IF_ERROR(renderer.render(*model, camera(p), key_rgb.data(), nullptr, key_alpha.data(), key_depth.data()));
+    GS_RETURN_IF_ERROR(registrar->render(camera(p), key_rgb.data(), key_depth.data(), key_alpha.data()));
     for (int l = 0; l < levels; ++l) {
       KeyLevel& k = key[size_t(l)];
       const int f = factor(l), w = k.in.width, h = k.in.height;
@@ -198,7 +196,7 @@ struct Tracker::Impl {
   bool registrar_warm = false;
   Status warm_registrar(const Pose& p) {
     if (registrar_warm) return Status::Ok();
-    GS_RETURN_IF_ERROR(renderer.render(*model, camera(p), key_rgb.data()));
+    GS_RETURN_IF_ERROR(registrar->render(camera(p), key_rgb.data()));
     const io::Image8 img = io::image_from_float_rgb(key_rgb.data(), full.width, full.height);
     RegisterResult rr;
     GS_RETURN_IF_ERROR(registrar->register_view(img.pixels.data(), full, p, &rr));
@@ -517,12 +515,6 @@ Expected<std::unique_ptr<Tracker>> Tracker::create(const model::HybridModel& mod
   d.full = frame;
   d.levels = options.levels;
   d.extent = model.scene_extent > 0 ? model.scene_extent : 1.0;
-  model::ModelRenderOptions ro;
-  ro.fixed_point_raster = options.fixed_point;
-  ro.int8_mlp = options.int8_mlp;
-  for (int c = 0; c < 3; ++c) ro.background[c] = options.background[c];
-  GS_RETURN_IF_ERROR(d.renderer.set_options(ro));
-  GS_RETURN_IF_ERROR(d.renderer.init(model, frame.width, frame.height, pool, kernels));
   RegisterOptions reg = options.relocalize;
   reg.fixed_point = options.fixed_point;
   for (int c = 0; c < 3; ++c) reg.background[c] = options.background[c];
@@ -569,7 +561,7 @@ Status Tracker::set_candidates(const std::vector<Pose>& poses) {
   d.ranked.reserve(poses.size() + kKeyframeRing);
   const int f = d.factor(d.levels - 1);
   for (size_t i = 0; i < poses.size(); ++i) {
-    GS_RETURN_IF_ERROR(d.renderer.render(*d.model, d.camera(poses[i]), d.key_rgb.data()));
+    GS_RETURN_IF_ERROR(d.registrar->render(d.camera(poses[i]), d.key_rgb.data()));
     io::box_downsample_float(d.key_rgb.data(), d.full.width, d.full.height, 3, f, d.lvl_rgb.data());
     describe(d.lvl_rgb.data(), d.desc_dim, d.cand_desc.data() + i * d.desc_dim);
   }

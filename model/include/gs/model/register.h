@@ -133,6 +133,12 @@ class Registrar {
   // an image larger than planned, an invalid camera or start pose. Allocates nothing.
   Status register_view(const uint8_t* rgb, const PinholeIntrinsics& intr, const Pose& init, RegisterResult* result);
 
+  // Renders the model at cam (at most the planned size) with the registrar's own decode and
+  // renderer, as its keyframes are: colour rgb [H, W, 3] and, when not null, the alpha-weighted
+  // depth and the opacity [H, W]. For renders beside registration without a second renderer (the
+  // tracker's keyframes). Allocates nothing once a registration has run.
+  Status render(const Camera& cam, float* rgb, float* depth = nullptr, float* alpha = nullptr);
+
   const RegisterOptions& options() const;
   RegisterOptions& mutable_options();  // e.g. switch the solver between calls (no re-planning)
   uint64_t planned_bytes() const;

@@ -7,7 +7,8 @@
 // `tracking`, `relocalized` (placed again after being lost, from candidate poses ranked by a small
 // global image descriptor and registered with gs::pose::Registrar) or `lost` (no pose is claimed).
 //
-// Memory: create() plans every buffer for the model and the frame size, set_candidates() renders
+// Memory: create() plans every buffer for the model and the frame size (keyframes are rendered by
+// the relocalisation's own Registrar: one renderer, one decode workspace), set_candidates() renders
 // and describes the candidates; track() allocates nothing.
 #pragma once
 
@@ -23,7 +24,6 @@
 
 namespace gs::platform { class ThreadPool; }
 namespace gs::simd { struct KernelTable; }
-namespace gs::model { struct CompactModel; }
 
 namespace gs::pose {
 
@@ -63,9 +63,6 @@ struct TrackOptions {
   // default they end at half resolution.
   RegisterOptions relocalize = half_resolution_registration();
   bool fixed_point = false;        // keyframe renders with the fixed-point blending
-  // Non-null: the decoder MLPs of the keyframe renders run as int8 with this compact model's
-  // weights (the model tracked must be its dequantize(); kept alive by the caller).
-  const model::CompactModel* int8_mlp = nullptr;
   float background[3] = {0, 0, 0}; // the colour behind the model (the one it was trained on)
 
   static RegisterOptions half_resolution_registration() {
