@@ -73,7 +73,7 @@ for s in "${scenes[@]}"; do
   dir="$out/real_$s"
   mkdir -p "$dir"
   [[ -f "$dir/video.mp4" ]] || ffmpeg -v error -nostdin -y -framerate 30 -pattern_type glob -i "$data/$s/images/*.jpg" \
-    -c:v libx264 -crf 18 -pix_fmt yuv420p "$dir/video.mp4"
+    -c:v libx264 -crf 18 -pix_fmt yuv444p "$dir/video.mp4"  # 4:4:4: odd frame sizes (fox: 220x393)
   python3 - "$data/$s/sparse/0/images.txt" "$dir/truth.txt" <<'PY'
 import sys
 lines = [l.split() for l in open(sys.argv[1]) if l.strip() and not l.startswith('#')]
