@@ -3,6 +3,8 @@
 // object, as test_register.cpp) with frames rendered by the same model along a smooth orbit: the
 // poses follow the path, the same with 1 and 2 threads, nothing is allocated per frame, a cut is
 // relocalised from candidate poses, and images of something else are reported lost, never placed.
+// Reduced (qemu) build: the fixed-point path on 12 frames and the input checks; the rest is
+// architecture-independent float code and runs natively only.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -107,7 +109,7 @@ std::vector<Pose> track_path(const pose::TrackOptions& opt, platform::ThreadPool
   return out;
 }
 
-TEST_CASE("tracker: follows a smooth path of the model's own renders, the same on 1 and 2 threads") {
+TEST_CASE("tracker: follows a smooth path of the model's own renders, the same on 1 and 2 threads" * GS_FULL_SIZE_ONLY) {
   platform::ThreadPool one(1), two(2);
   pose::TrackOptions opt;
   double rot[2], centre[2], median = 0;
@@ -142,7 +144,7 @@ TEST_CASE("tracker: the fixed-point keyframes track the path as well") {
   CHECK(centre < 0.005 * 6.0);
 }
 
-TEST_CASE("tracker: nothing is allocated per frame, new keyframes and relocalisation included") {
+TEST_CASE("tracker: nothing is allocated per frame, new keyframes and relocalisation included" * GS_FULL_SIZE_ONLY) {
   const Fixture& f = fixture();
   platform::ThreadPool pool(2);
   pose::TrackOptions opt;
@@ -166,7 +168,7 @@ TEST_CASE("tracker: nothing is allocated per frame, new keyframes and relocalisa
   CHECK(r.keyframes > keyframes_before + 2);
 }
 
-TEST_CASE("tracker: a cut is relocalised from the candidates, images of something else are lost") {
+TEST_CASE("tracker: a cut is relocalised from the candidates, images of something else are lost" * GS_FULL_SIZE_ONLY) {
   const Fixture& f = fixture();
   platform::ThreadPool pool(2);
   pose::TrackOptions opt;
