@@ -19,7 +19,7 @@ std::string tum_line(const TimedPose& p, const SceneFrame& frame) {
   double R[9];
   pose::rotation_from_quaternion(q, R);
   double c[3];  // the centre -R^T t
-  for (int i = 0; i < 3; ++i) c[i] = -(R[i] * t[0] + R[3 + i] * t[1] + R[6 + i] * t[2]);
+  for (int i = 0; i < 3; ++i) c[i] = 0.0 - (R[i] * t[0] + R[3 + i] * t[1] + R[6 + i] * t[2]);  // 0 - 0: "+0", not "-0"
   // Camera-to-world rotation = the conjugate; its scalar kept >= 0.
   const double s = q[0] < 0 ? -1.0 : 1.0;
   const double x = 0.0 - s * q[1], y = 0.0 - s * q[2], z = 0.0 - s * q[3];  // 0 - 0 is +0, not "-0"

@@ -41,6 +41,8 @@ TEST_CASE("TUM trajectory: written centres and camera-to-world quaternions read 
   // The line holds the camera centre -R^T t and the rotation's conjugate, scalar last.
   io::TimedPose p{2.5, turned_pose(0.0, 1, 2, 3)};  // identity rotation: centre (-1, -2, -3), q = (0, 0, 0, 1)
   CHECK(io::tum_line(p) == "2.500000 -1 -2 -3 0 0 0 1");
+  io::TimedPose o{0.0, turned_pose(0.0, 0, 0, 4)};  // zero coordinates print as 0, not -0
+  CHECK(io::tum_line(o) == "0.000000 0 0 -4 0 0 0 1");
 }
 
 TEST_CASE("TUM trajectory: comments and blank lines are skipped, malformed lines are refused by line") {
