@@ -31,26 +31,7 @@ struct Fixture {
   std::vector<uint8_t> image;  // [H, W, 3] render of the model at the true pose
 
   Fixture() {
-    // An asymmetric object (a squashed ellipsoid and an off-centre ball): a sphere alone looks the
-    // same from an orbit around it, which no photometric method can disambiguate.
-    std::vector<float> pts = test::sphere_points(2400, 5);
-    for (size_t i = 0; i < pts.size(); i += 3) pts[i + 1] *= 0.6f, pts[i + 2] *= 0.45f;
-    const float ball_centre[3] = {1.6f, -0.9f, -0.4f};
-    const std::vector<float> ball = test::sphere_points(600, 6, ball_centre);
-    for (size_t i = 0; i < ball.size(); i += 3)
-      for (int c = 0; c < 3; ++c) pts.push_back(ball_centre[c] + 0.35f * (ball[i + size_t(c)] - ball_centre[c]));
-    ModelConfig cfg;
-    cfg.k = 4;
-    cfg.max_anchors = 3000;
-    cfg.max_gaussians = 12000;
-    cfg.image_features = ImageFeatureMode::kNone;
-    Expected<HybridModel> m = create_model(cfg, pts.data(), pts.size() / 3, 4.0f, 1);
-    REQUIRE(m.ok());
-    model = std::move(m).value();
-    std::mt19937 rng(2);
-    std::normal_distribution<float> g(0.0f, 1.0f);
-    for (float& f : model.features) f = 2.0f * g(rng);
-    for (float& o : model.offsets) o = 0.5f * g(rng);
+    model = test::asymmetric_object_model();  // asymmetric: a sphere looks the same from every side
     const double C[3] = {0.3, -0.4, -6.0}, at[3] = {0, 0, 0};
     PinholeIntrinsics intr{80, 80, kW / 2.0f, kH / 2.0f, kW, kH};
     truth = test::look_at(C, at, intr);

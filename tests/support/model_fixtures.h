@@ -92,6 +92,32 @@ inline Camera look_at(const double C[3], const double at[3], const PinholeIntrin
   return cam;
 }
 
+// The registration and tracking tests' object: a squashed ellipsoid and an off-centre ball (a sphere
+// alone looks the same from an orbit around it, which no photometric method can disambiguate),
+// k = 4, no image features, features and offsets drawn from a seeded normal so the render is
+// textured. Fails the test on error.
+inline model::HybridModel asymmetric_object_model() {
+  std::vector<float> pts = sphere_points(2400, 5);
+  for (size_t i = 0; i < pts.size(); i += 3) pts[i + 1] *= 0.6f, pts[i + 2] *= 0.45f;
+  const float ball_centre[3] = {1.6f, -0.9f, -0.4f};
+  const std::vector<float> ball = sphere_points(600, 6, ball_centre);
+  for (size_t i = 0; i < ball.size(); i += 3)
+    for (int c = 0; c < 3; ++c) pts.push_back(ball_centre[c] + 0.35f * (ball[i + size_t(c)] - ball_centre[c]));
+  model::ModelConfig cfg;
+  cfg.k = 4;
+  cfg.max_anchors = 3000;
+  cfg.max_gaussians = 12000;
+  cfg.image_features = model::ImageFeatureMode::kNone;
+  Expected<model::HybridModel> m = model::create_model(cfg, pts.data(), pts.size() / 3, 4.0f, 1);
+  REQUIRE(m.ok());
+  model::HybridModel model = std::move(m).value();
+  std::mt19937 rng(2);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  for (float& f : model.features) f = 2.0f * g(rng);
+  for (float& o : model.offsets) o = 0.5f * g(rng);
+  return model;
+}
+
 inline std::vector<uint8_t> read_bytes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   return std::vector<uint8_t>(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
