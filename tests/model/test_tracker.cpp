@@ -19,6 +19,7 @@
 #include "gs/model/tracker.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
+#include "gs/simd/kernel_table.h"
 #include "support/alloc_counter.h"
 #include "support/model_fixtures.h"
 #include "support/reduced.h"
@@ -125,6 +126,49 @@ TEST_CASE("tracker: the fixed-point keyframes track the path as well") {
   CHECK(median < 0.1);
   CHECK(rot < 0.2);
   CHECK(centre < 0.005 * 6.0);
+}
+
+// How much the on-device path's poses depend on the architecture: the fixed-point blending is
+// bit-exact between the scalar reference kernels and every SIMD table (its own tests), but the
+// decoder MLPs and the projection run float SIMD kernels whose rounding differs from the reference,
+// so the keyframes differ in the last bits. The whole tracker with the reference kernels and with
+// every SIMD table this CPU runs (SSE2, AVX2, AVX-512 on x86; NEON under qemu-aarch64 / armhf in the
+// reduced build) agrees within 0.0025 degrees on avx512 (issue 25 asks 0.001 between x86 and
+// aarch64: not met); the check holds them within 0.005.
+TEST_CASE("tracker: fixed-point poses with the reference kernels and this CPU's SIMD kernels agree within 0.005 degrees") {
+  const Fixture& f = fixture();
+  platform::ThreadPool pool(2);
+  pose::TrackOptions opt;
+  opt.fixed_point = true;
+  auto track_with = [&](const simd::KernelTable* table) {
+    std::vector<Pose> poses;
+    auto t = pose::Tracker::create(f.model, kIntr, opt, &pool, table);
+    REQUIRE(t.ok());
+    REQUIRE((*t)->reset(f.path[0].pose).ok());
+    for (size_t i = 0; i < f.frames.size(); ++i) {
+      pose::TrackResult r;
+      REQUIRE((*t)->track(f.frames[i].data(), double(i) / 30.0, &r).ok());
+      CHECK(r.verdict == pose::TrackVerdict::kTracking);
+      poses.push_back(r.pose);
+    }
+    return poses;
+  };
+  const std::vector<Pose> ref = track_with(&simd::ref_kernel_table());
+  int compared = 0;
+  for (const char* isa : {"sse2", "avx2", "avx512", "neon64", "neon"}) {
+    const simd::KernelTable* table = simd::kernel_table_by_name(isa);
+    if (!table) continue;  // not built for or not supported by this CPU
+    const std::vector<Pose> other = track_with(table);
+    double worst = 0;
+    for (size_t i = 0; i < ref.size(); ++i) {
+      worst = std::max(worst, pose::rotation_error_deg(ref[i], other[i]));
+      CHECK(centre_error(ref[i], other[i]) < 1e-4 * 6.0);
+    }
+    MESSAGE("reference vs " << std::string(isa) << ": largest rotation difference " << worst << " deg");
+    CHECK(worst < 0.005);
+    ++compared;
+  }
+  if (compared == 0) MESSAGE("no SIMD kernel table on this CPU: nothing compared");
 }
 
 TEST_CASE("tracker: nothing is allocated per frame, new keyframes and relocalisation included" * GS_FULL_SIZE_ONLY) {
