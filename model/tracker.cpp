@@ -397,6 +397,24 @@ struct Tracker::Impl {
 
   // A registration from pose p (the tracked frame's, when it moved far): true with the registered
   // pose in *p when it converged, the keyframe rendered there and the frame aligned to it passes.
+  // The basin test of a pose q that registration placed (the keyframe rendered at q): aligned again
+  // from 4 starts turned basin_check_deg about the camera centre (pan and tilt), each must come back
+  // within 1 degree of q. A look-alike pose near the true one is a shallow local minimum: from some
+  // side the alignment slides away from it.
+  bool stable(const Pose& q, int* iterations) {
+    if (opt.basin_check_deg <= 0) return true;
+    const double a = opt.basin_check_deg * M_PI / 180.0;
+    static const int kTurns[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+    for (const auto& turn : kTurns) {
+      Pose start = q;
+      const double xi[6] = {0, 0, 0, turn[1] * a, turn[0] * a, 0};
+      apply_left_twist(xi, &start);
+      align(&start, iterations);
+      if (rotation_error_deg(start, q) > 1.0) return false;
+    }
+    return true;
+  }
+
   Status verify(const uint8_t* rgb, Pose* p, TrackResult* out, bool* ok) {
     *ok = false;
     RegisterResult rr;
@@ -408,7 +426,7 @@ struct Tracker::Impl {
     out->new_keyframe = true;
     const Sums s = align(&q, &out->iterations);
     fill_stats(s, out);
-    if (!good(s, *out)) return Status::Ok();
+    if (!good(s, *out) || !stable(q, &out->iterations)) return Status::Ok();
     *p = q;
     *ok = true;
     return Status::Ok();
@@ -474,7 +492,7 @@ struct Tracker::Impl {
       GS_RETURN_IF_ERROR(render_keyframe(p));
       const Sums s = align(&p, iterations);
       fill_stats(s, out);
-      if (!good(s, *out)) continue;
+      if (!good(s, *out) || !stable(p, iterations)) continue;
       out->pose = p;
       out->new_keyframe = true;
       *found = true;

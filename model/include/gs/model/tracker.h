@@ -59,6 +59,12 @@ struct TrackOptions {
   // frames (the model's own residual on this stream; 0: no bound): a look-alike pose on a weakly
   // textured object can explain much of the frame's variance, but not as well as the true pose.
   double max_rmse_growth = 2.5;
+  // A pose found by registration (relocalised, or a frame checked after a large move) must also be
+  // where the alignment returns to from 4 starts turned this far about the camera centre (0: no
+  // check): a look-alike pose near the true one is a shallow local minimum. On snowmiku_plush's
+  // photos in capture order 2 degrees took the frames placed over 1 degree off from 2 to 1 (4 lost
+  // either way); 3 and 4 degrees lost 17-20 frames and every sceaux_castle photo.
+  double basin_check_deg = 2.0;
   int relocalize_candidates = 3;   // registrations from the best-ranked candidates when lost
   // The registrations' options (their background and fixed_point are the tracker's own); by
   // default they end at half resolution.
