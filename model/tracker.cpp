@@ -31,10 +31,10 @@ namespace {
 
 constexpr size_t kChunk = 256;          // keyframe points per partial sum (fixed: sums do not depend on threads)
 constexpr size_t kKeyframeRing = 16;    // recent keyframes kept as relocalisation candidates
-constexpr double kMinInside = 0.5;
+constexpr double kMinInside = 0.5;      // a frame whose keyframe points mostly leave it is not tracked
 // No RMSE up to this is suspicious, however small the stream's usual one (a model's own renders:
 // 0.001; real photos against a good model: 0.012-0.02).
-constexpr double kRmseFloor = 0.03;      // a frame whose keyframe points mostly leave it is not tracked
+constexpr double kRmseFloor = 0.03;
 
 // Sums of one chunk of keyframe points (or of all): the upper triangle of J^T W J, J^T W r, the
 // Huber cost, the squared colour residual and the counts.
@@ -61,7 +61,7 @@ struct FrameLevel {
   std::vector<float> rgb;  // [h, w, 3] in [0, 1]
 };
 
-// b = a^-1 composed: the pose mapping camera a's coordinates to camera b's, b a^-1.
+// The pose mapping camera `from`'s coordinates to camera `to`'s: to from^-1.
 Pose relative(const Pose& to, const Pose& from) {
   double R[9], t[3];
   for (int i = 0; i < 3; ++i)
@@ -120,7 +120,6 @@ void describe(const float* rgb, size_t pixels, float* out) {
 }  // namespace
 
 struct Tracker::Impl {
-  const model::HybridModel* model = nullptr;
   TrackOptions opt;
   platform::ThreadPool* pool = nullptr;
   PinholeIntrinsics full;
@@ -527,7 +526,6 @@ Expected<std::unique_ptr<Tracker>> Tracker::create(const model::HybridModel& mod
                             std::to_string(options.track_downscale) + " (the coarsest must be at least 8x6)");
   std::unique_ptr<Tracker> t(new Tracker());
   Impl& d = *t->impl_;
-  d.model = &model;
   d.opt = options;
   d.pool = pool;
   d.full = frame;
