@@ -139,20 +139,18 @@ class FloatBackend {
     sum_chunks(2, 0);
   }
 
-  // depth (optional): the alpha-weighted depth image [H, W] as well (RenderOptions::depth).
-  Status render_fwd(const Camera& cam, const NeuralGaussians<float>& ng, float* rgb, float* depth = nullptr) {
-    return render_params(cam, gaussian_params(ng), rgb, depth);
+  Status render_fwd(const Camera& cam, const NeuralGaussians<float>& ng, float* rgb) {
+    return render_params(cam, gaussian_params(ng), rgb);
   }
   // The same for any Gaussians with colours (plain Gaussians: gs/model/cloud_decode.h).
-  Status render_params(const Camera& cam, const GaussianParams& gp, float* rgb, float* depth = nullptr) {
+  Status render_params(const Camera& cam, const GaussianParams& gp, float* rgb) {
     RenderOptions ro;
-    ro.depth = depth != nullptr;
 #ifdef NDEBUG
     ro.validate_inputs = false;  // decoded values are finite by construction; debug builds check
 #endif
     ro.fixed_point = fixed_point_raster;
     for (int c = 0; c < 3; ++c) ro.background[c] = background[c];
-    Status st = renderer_->forward(cam, gp, ro, rgb, depth);
+    Status st = renderer_->forward(cam, gp, ro, rgb);
     // The tile-intersection count depends on the Gaussians' screen sizes, which training changes;
     // when a view needs more than planned, re-plan once with 1.5x headroom (a rare allocation, not
     // a per-step one) instead of failing the run.
@@ -163,7 +161,7 @@ class FloatBackend {
       rc.max_isects = size_t(std::min<uint64_t>(needed + needed / 2, (uint64_t(1) << 31) - 1));
       GS_RETURN_IF_ERROR(renderer_->init(rc, pool_, kt_));
       ++replans_;
-      st = renderer_->forward(cam, gp, ro, rgb, depth);
+      st = renderer_->forward(cam, gp, ro, rgb);
     }
     return st;
   }

@@ -87,8 +87,7 @@ Status ModelRenderer::init(const HybridModel& model, int max_width, int max_heig
   return impl_->plan_int8();
 }
 
-Status ModelRenderer::render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians, float* alpha,
-                             float* depth) {
+Status ModelRenderer::render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians, float* alpha) {
   Impl& d = *impl_;
   if (model.anchor_count > d.capacity) return capacity_exceeded("model renderer: the model has more anchors than planned");
   GS_RETURN_IF_ERROR(validate_camera(camera));
@@ -103,7 +102,7 @@ Status ModelRenderer::render(const HybridModel& model, const Camera& camera, flo
   const size_t N = decode_view(d.backend, p, camera, d.ws, &V);
   const uint64_t t1 = platform::now_ns();
   if (gaussians) *gaussians = N;
-  const Status st = d.backend.render_fwd(camera, d.ws.ng, rgb, depth);
+  const Status st = d.backend.render_fwd(camera, d.ws.ng, rgb);
   d.decode_ms = double(t1 - t0) * 1e-6;
   d.forward_ms = double(platform::now_ns() - t1) * 1e-6;
   d.finish(st, camera, alpha);

@@ -50,10 +50,9 @@ class ModelRenderer {
   Status init(const GaussianCloud& cloud, int max_width, int max_height, platform::ThreadPool* pool,
               const simd::KernelTable* kernels = nullptr);
   // rgb: [H, W, 3] floats (not clamped). gaussians: kept neural Gaussians of this view (optional).
-  // alpha [H, W] (optional): the render's opacity, 1 - final transmittance. depth [H, W]
-  // (optional): the alpha-weighted depth (divide by alpha for the depth of a covered pixel).
+  // alpha [H, W] (optional): the render's opacity, 1 - final transmittance.
   Status render(const HybridModel& model, const Camera& camera, float* rgb, size_t* gaussians = nullptr,
-                float* alpha = nullptr, float* depth = nullptr);
+                float* alpha = nullptr);
   Status render(const GaussianCloud& cloud, const Camera& camera, float* rgb, size_t* gaussians = nullptr,
                 float* alpha = nullptr);
   // Wall time of the last render's two stages, ms: decoding the anchors (MLPs) and the Gaussian
