@@ -117,6 +117,13 @@ void describe(const float* rgb, size_t pixels, float* out) {
   for (size_t i = 0; i < pixels; ++i) out[i] *= inv;
 }
 
+// v (RGB) -> (sqrt(3) Y, w (B - Y), w (R - Y)) in place (see Impl::evaluate).
+inline void to_luma_chroma(float v[3], float w) {
+  const float y = 0.299f * v[0] + 0.587f * v[1] + 0.114f * v[2];
+  const float cb = v[2] - y, cr = v[0] - y;
+  v[0] = 1.7320508f * y, v[1] = w * cb, v[2] = w * cr;
+}
+
 }  // namespace
 
 struct Tracker::Impl {
@@ -227,6 +234,7 @@ struct Tracker::Impl {
     const float fx = fr.in.fx, fy = fr.in.fy, cx = fr.in.cx, cy = fr.in.cy;
     const int w = fr.in.width, h = fr.in.height;
     const double out_cost = detail::huber_cost(2 * delta, delta);
+    const float chroma = float(opt.chroma_weight);
     auto body = [&](size_t cb, size_t ce, int) {
       for (size_t c = cb; c < ce; ++c) {
         Sums s;
@@ -264,9 +272,16 @@ struct Tracker::Impl {
             cu[q] = (p10[q] - p00[q]) + ay * ((p11[q] - p01[q]) - (p10[q] - p00[q]));
             cv[q] = bottom - top;
           }
-          const double se = double(r[0]) * r[0] + double(r[1]) * r[1] + double(r[2]) * r[2], rn = std::sqrt(se);
+          // The verdict's squared residual in RGB; the cost and the normal equations weigh the
+          // residual as (sqrt(3) Y, w (B - Y), w (R - Y)), Y = 0.299 R + 0.587 G + 0.114 B,
+          // w = chroma_weight: a grey residual keeps its RGB norm (and the Huber delta its scale),
+          // and colour, which video codecs and Bayer sensors carry at lower resolution than
+          // brightness, can count for less.
+          const double se = double(r[0]) * r[0] + double(r[1]) * r[1] + double(r[2]) * r[2];
           ++s.inside;
           s.se += se;
+          if (chroma >= 0) to_luma_chroma(r, chroma), to_luma_chroma(cu, chroma), to_luma_chroma(cv, chroma);
+          const double rn = std::sqrt(double(r[0]) * r[0] + double(r[1]) * r[1] + double(r[2]) * r[2]);
           s.cost += detail::huber_cost(rn, delta);
           if (!jacobian) continue;
           // J_q = cu_q du + cv_q dv per channel q, so sum_q J_q J_q^T = guu du du^T + guv (du dv^T +
@@ -517,6 +532,7 @@ Expected<std::unique_ptr<Tracker>> Tracker::create(const model::HybridModel& mod
     return invalid_argument("tracker: levels " + std::to_string(options.levels) + " is not in 1..6");
   if (!(options.huber_delta > 0) || !std::isfinite(options.huber_delta))
     return invalid_argument("tracker: huber_delta must be positive");
+  if (!std::isfinite(options.chroma_weight)) return invalid_argument("tracker: chroma_weight must be finite");
   if (options.iterations_per_level < 1)
     return invalid_argument("tracker: iterations_per_level must be at least 1");
   const int coarsest = options.track_downscale << (options.levels - 1);
