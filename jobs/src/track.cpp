@@ -289,6 +289,8 @@ nlohmann::ordered_json summary_json(const TrackRunOptions& a, const TrackRunSumm
             {"max_correction_translation", to.max_correction_translation},
             {"verify_correction_deg", to.verify_correction_deg},
             {"max_rmse_growth", to.max_rmse_growth},
+            {"basin_check_deg", to.basin_check_deg},
+            {"chroma_weight", to.chroma_weight},
             {"max_rmse", to.max_rmse},
             {"min_explained", to.min_explained},
             {"min_coverage", to.min_coverage},
