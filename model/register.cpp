@@ -110,6 +110,13 @@ struct Registrar::Impl {
     return ro;
   }
 
+  // The last render's opacity, 1 - final transmittance, [H, W] of cam.
+  void opacity(const Camera& cam, float* out) const {
+    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
+    const float* T = renderer.final_transmittance();
+    for (size_t i = 0; i < n; ++i) out[i] = 1.0f - T[i];
+  }
+
   // Decodes the model's Gaussians for a pose (colours for its view direction).
   // The camera of the last decode and its count (a decode costs as much as a render here: the
   // decoders run for every anchor in view), so a repeated decode at the same pose is skipped.
@@ -202,9 +209,7 @@ struct Registrar::Impl {
     if (!(key_valid && same_camera(kc, key_cam))) {
       const GaussianParams gp = gaussians();
       GS_RETURN_IF_ERROR(renderer.forward(kc, gp, render_options(true), key_rgb.data(), key_depth.data()));
-      const size_t n = size_t(kc.intr.width) * size_t(kc.intr.height);
-      const float* T = renderer.final_transmittance();
-      for (size_t i = 0; i < n; ++i) key_alpha[i] = 1.0f - T[i];
+      opacity(kc, key_alpha.data());
       key_cam = kc;
       key_valid = true;
     }
@@ -278,9 +283,7 @@ struct Registrar::Impl {
     key_valid = true;
     const GaussianParams gp = gaussians();
     GS_RETURN_IF_ERROR(renderer.forward(cam, gp, render_options(true), key_rgb.data(), key_depth.data()));
-    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
-    const float* T = renderer.final_transmittance();
-    for (size_t i = 0; i < n; ++i) key_alpha[i] = 1.0f - T[i];
+    opacity(cam, key_alpha.data());
     return Status::Ok();
   }
 
@@ -397,9 +400,7 @@ struct Registrar::Impl {
     const GaussianParams gp = gaussians();
     key_valid = false;  // rendered with the Gaussians of the polish's decode, not full's own
     GS_RETURN_IF_ERROR(renderer.forward(kc, gp, render_options(true), key_rgb.data(), key_depth.data()));
-    const size_t n = size_t(kc.intr.width) * size_t(kc.intr.height);
-    const float* T = renderer.final_transmittance();
-    for (size_t i = 0; i < n; ++i) key_alpha[i] = 1.0f - T[i];
+    opacity(kc, key_alpha.data());
     const int f = finest / ks;
     io::box_downsample_float(key_rgb.data(), kc.intr.width, kc.intr.height, 3, f, lvl_rgb.data());
     io::box_downsample_float(key_depth.data(), kc.intr.width, kc.intr.height, 1, f, lvl_depth.data());
@@ -653,11 +654,7 @@ Status Registrar::render(const Camera& cam, float* rgb, float* depth, float* alp
     return Status::Ok();
   }
   GS_RETURN_IF_ERROR(d.renderer.forward(cam, d.gaussians(), d.render_options(depth != nullptr), rgb, depth));
-  if (alpha) {
-    const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
-    const float* T = d.renderer.final_transmittance();
-    for (size_t i = 0; i < n; ++i) alpha[i] = 1.0f - T[i];
-  }
+  if (alpha) d.opacity(cam, alpha);
   d.polish_render_valid = false;
   return Status::Ok();
 }
