@@ -18,8 +18,9 @@ namespace gs::model {
 namespace {
 
 constexpr char kCheckpointMagic[8] = {'H', 'B', 'G', 'S', 'C', 'K', 'P', 'T'};
-// 2: training poses and their Adam state; 3: held-back views; 4: the re-targeted schedule.
-constexpr uint32_t kCheckpointVersion = 4;
+// 2: training poses and their Adam state; 3: held-back views; 4: the re-targeted schedule;
+// 5: the views released by registration (polished again while the held-back window lasts).
+constexpr uint32_t kCheckpointVersion = 5;
 
 // The schedule fields Trainer::retarget changes, in the order the checkpoint stores them.
 template <class Opt>
@@ -78,6 +79,7 @@ Status Trainer::save_checkpoint(const std::string& path) const {
     w.f64(d.lr_progress);
     w.f64(d.coarse_end);
   }
+  for (uint8_t r : d.repaired) w.u8(r);
   w.u64(detail::fnv1a64(w.bytes.data(), w.bytes.size()));
   assert(w.bytes.size() == size);  // the plan above matches what was written
   return platform::write_file_atomic(path, w.bytes.data(), w.bytes.size());
@@ -185,6 +187,12 @@ Status Trainer::load_checkpoint(const std::string& path) {
         return parse_error(path + ": bad schedule");
     }
   }
+  std::vector<uint8_t> repaired(d.views.size(), 0);  // version 4 and before: none recorded
+  if (version >= 5)
+    for (size_t v = 0; v < repaired.size(); ++v) {
+      repaired[v] = r.u8("released views");
+      if (r.status().ok() && (repaired[v] > 1 || (repaired[v] && held[v]))) return parse_error(path + ": bad released-view flag");
+    }
   if (!r.status().ok()) return r.status();
   if (std::find(held.begin(), held.end(), uint8_t(0)) == held.end()) return parse_error(path + ": every view is held back");
   if (retargeted) {
@@ -194,6 +202,12 @@ Status Trainer::load_checkpoint(const std::string& path) {
     d.retargeted = true;
   }
   d.held = held;
+  d.repaired = repaired;
+  // A run resumed with views still held registers them: plan the registrar it was created without.
+  if (!d.registrar && (d.held_count() > 0 || d.repaired_count() > 0)) {
+    GS_RETURN_IF_ERROR(d.plan_registrar(d.opt));
+    if (d.registrar) d.planned_bytes += d.registrar->planned_bytes();
+  }
   d.iteration = iteration;
   d.rng.state = rng_state;
   d.view_pos = size_t(view_pos);

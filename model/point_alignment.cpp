@@ -46,6 +46,21 @@ void pose_to_double(const Pose& pose, double R[9], double t[3]) {
 
 constexpr double kNear = 0.05;  // camera-space depth below which a point is ignored
 
+// An even subsample of at most max_points points, colours in [0, 1] (empty without rgb).
+struct PointSample {
+  std::vector<float> xyz, rgb;
+};
+PointSample subsample_points(const float* xyz, const uint8_t* rgb, size_t n, size_t max_points) {
+  PointSample out;
+  const size_t stride = std::max<size_t>((n + max_points - 1) / std::max<size_t>(max_points, 1), 1);
+  for (size_t p = 0; p < n; p += stride) {
+    out.xyz.insert(out.xyz.end(), xyz + 3 * p, xyz + 3 * p + 3);
+    if (rgb)
+      for (int k = 0; k < 3; ++k) out.rgb.push_back(float(rgb[3 * p + size_t(k)]) / 255.0f);
+  }
+  return out;
+}
+
 struct Aligner {
   const float* xyz = nullptr;
   const float* known = nullptr;                   // [n, 3] fixed point colours, or null
@@ -62,6 +77,37 @@ struct Aligner {
   std::vector<std::vector<float>> zbuf;           // per view [h, w]
 
   size_t views() const { return cameras->size(); }
+
+  void setup(const PointSample& points, std::vector<Camera>* cams, const PointAlignOptions* options) {
+    xyz = points.xyz.data();
+    known = points.rgb.empty() ? nullptr : points.rgb.data();
+    n = points.xyz.size() / 3;
+    cameras = cams;
+    opt = options;
+    std::vector<Pose> poses;
+    for (const Camera& c : *cameras) poses.push_back(c.pose);
+    double centre[3];
+    pose::scene_frame(poses.data(), poses.size(), centre, &radius);
+    const size_t V = cameras->size();
+    images.resize(V);
+    intr.resize(V);
+    zbuf.resize(V);
+    visible.assign(V * n, 0);
+    colour.assign(V * n * 3, 0.0f);
+    sum.assign(n * 3, 0.0);
+    count.assign(n, 0);
+  }
+
+  // View v's image at level s (a box-filtered 1/s of it), its intrinsics there, and a fresh z-buffer.
+  void load_level(size_t v, const io::Image8& im, int s) {
+    LevelImage& L = images[v];
+    L.w = im.width / s;
+    L.h = im.height / s;
+    L.rgb.resize(size_t(L.w) * size_t(L.h) * 3);
+    io::box_downsample_rgb(im.pixels.data(), im.width, im.height, s, L.rgb.data());
+    intr[v] = scaled_camera((*cameras)[v], s).intr;
+    zbuf[v].assign(size_t(im.width) * size_t(im.height), INFINITY);
+  }
 
   // Visibility (in front, inside, not behind the z-buffer) and colour of every point in view v.
   // The z-buffer lives at full resolution (a coarse one would let every near point hide the far
@@ -239,36 +285,12 @@ Status align_poses_to_points(const float* xyz, const uint8_t* rgb, size_t n, con
     if (im.channels != 3 || im.width != in.width || im.height != in.height)
       return invalid_argument("point alignment: image " + std::to_string(v) + " does not match its camera");
   }
-  // An even subsample of the points.
-  std::vector<float> pts, cols;
-  const size_t stride = (n + options.max_points - 1) / std::max<size_t>(options.max_points, 1);
-  for (size_t p = 0; p < n; p += std::max<size_t>(stride, 1)) {
-    pts.insert(pts.end(), xyz + 3 * p, xyz + 3 * p + 3);
-    if (rgb)
-      for (int k = 0; k < 3; ++k) cols.push_back(float(rgb[3 * p + size_t(k)]) / 255.0f);
-  }
+  const PointSample points = subsample_points(xyz, rgb, n, options.max_points);
   Aligner al;
-  al.xyz = pts.data();
-  al.known = rgb ? cols.data() : nullptr;
-  al.n = pts.size() / 3;
-  al.cameras = cameras;
-  al.opt = &options;
-  {
-    std::vector<Pose> poses;
-    for (const Camera& c : *cameras) poses.push_back(c.pose);
-    double centre[3];
-    pose::scene_frame(poses.data(), poses.size(), centre, &al.radius);
-  }
+  al.setup(points, cameras, &options);
   const size_t V = cameras->size();
   std::vector<Pose> start;
   for (const Camera& c : *cameras) start.push_back(c.pose);
-  al.images.resize(V);
-  al.intr.resize(V);
-  al.zbuf.resize(V);
-  al.visible.assign(V * al.n, 0);
-  al.colour.assign(V * al.n * 3, 0.0f);
-  al.sum.assign(al.n * 3, 0.0);
-  al.count.assign(al.n, 0);
 
   // Coarsest level: halvings while every image stays min_width wide.
   int min_w = (*cameras)[0].intr.width;
@@ -286,16 +308,7 @@ Status align_poses_to_points(const float* xyz, const uint8_t* rgb, size_t n, con
   PointAlignReport rep;
   rep.points_used = al.n;
   for (int s = coarsest; s >= 1; s /= 2) {
-    for_views([&](size_t v) {
-      const io::Image8& im = *images[v];
-      LevelImage& L = al.images[v];
-      L.w = im.width / s;
-      L.h = im.height / s;
-      L.rgb.resize(size_t(L.w) * size_t(L.h) * 3);
-      io::box_downsample_rgb(im.pixels.data(), im.width, im.height, s, L.rgb.data());
-      al.intr[v] = scaled_camera((*cameras)[v], s).intr;
-      al.zbuf[v].assign(size_t(im.width) * size_t(im.height), INFINITY);
-    });
+    for_views([&](size_t v) { al.load_level(v, *images[v], s); });
     for (int round = 0; round < options.rounds_per_level; ++round) {
       for_views([&](size_t v) { al.observe(v); });
       al.accumulate_means();
@@ -321,6 +334,81 @@ Status align_poses_to_points(const float* xyz, const uint8_t* rgb, size_t n, con
   rep.seconds = platform::now_seconds() - t0;
   if (report) *report = rep;
   return Status::Ok();
+}
+
+Status score_views_against_points(const float* xyz, const uint8_t* rgb, size_t n, const std::vector<const io::Image8*>& images,
+                                  const std::vector<Camera>& cameras, double huber, size_t max_points,
+                                  platform::ThreadPool* pool, std::vector<ViewPointAgreement>* scores) {
+  if (images.size() != cameras.size()) return invalid_argument("point agreement: one image per camera needed");
+  for (size_t v = 0; v < images.size(); ++v) {
+    const io::Image8& im = *images[v];
+    if (im.channels != 3 || im.width != cameras[v].intr.width || im.height != cameras[v].intr.height)
+      return invalid_argument("point agreement: image " + std::to_string(v) + " does not match its camera");
+  }
+  scores->assign(cameras.size(), ViewPointAgreement{});
+  if (cameras.empty() || n == 0) return Status::Ok();
+  PointAlignOptions options;
+  options.huber = huber;
+  options.max_points = max_points;
+  const PointSample points = subsample_points(xyz, rgb, n, max_points);
+  std::vector<Camera> cams = cameras;
+  Aligner al;
+  al.setup(points, &cams, &options);
+  const size_t V = cams.size();
+  auto for_views = [&](auto&& fn) {
+    auto body = [&](size_t b, size_t e, int) {
+      for (size_t v = b; v < e; ++v) fn(v);
+    };
+    if (pool) pool->parallel_for(V, 1, body);
+    else body(0, V, 0);
+  };
+  for_views([&](size_t v) {
+    al.load_level(v, *images[v], 1);
+    al.observe(v);
+  });
+  al.accumulate_means();
+  const double h2 = huber * huber;
+  for_views([&](size_t v) {
+    std::vector<size_t> seen;
+    for (size_t p = 0; p < al.n; ++p)
+      if (al.visible[v * al.n + p] && (al.known || al.count[p] >= 2)) seen.push_back(p);
+    ViewPointAgreement& out = (*scores)[v];
+    out.visible = seen.size();
+    if (seen.empty()) return;
+    // The chance pairing: each point against the sample of the point a third of the list further
+    // on (far apart in the image for any ordering of the cloud that is not spatial).
+    const size_t shift = std::max<size_t>(1, seen.size() / 3);
+    size_t agree = 0, chance = 0;
+    for (size_t i = 0; i < seen.size(); ++i) {
+      const size_t p = seen[i], q = seen[(i + shift) % seen.size()];
+      double tg[3];
+      al.target(v, p, tg);
+      double d2 = 0, c2 = 0;
+      for (int k = 0; k < 3; ++k) {
+        const double a = al.colour[(v * al.n + p) * 3 + size_t(k)] - tg[k];
+        const double b = al.colour[(v * al.n + q) * 3 + size_t(k)] - tg[k];
+        d2 += a * a, c2 += b * b;
+      }
+      agree += d2 <= h2;
+      chance += c2 <= h2;
+    }
+    out.agree = double(agree) / double(seen.size());
+    out.chance = double(chance) / double(seen.size());
+  });
+  return Status::Ok();
+}
+
+std::vector<uint8_t> suspect_views(const std::vector<ViewPointAgreement>& scores) {
+  std::vector<uint8_t> flags(scores.size(), 0);
+  if (scores.size() < 3) return flags;
+  std::vector<double> agree, chance, visible;
+  for (const ViewPointAgreement& s : scores) agree.push_back(s.agree), chance.push_back(s.chance), visible.push_back(double(s.visible));
+  const double a = median(agree), c = median(chance), seen = median(visible);
+  const double margin = a - c;
+  if (!(margin >= 0.1)) return flags;
+  for (size_t v = 0; v < scores.size(); ++v)
+    flags[v] = scores[v].agree - scores[v].chance < 0.25 * margin || double(scores[v].visible) < 0.25 * seen;
+  return flags;
 }
 
 }  // namespace gs::pose

@@ -15,6 +15,7 @@
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
 #include "pose_solve.h"
+#include "image_descriptor.h"
 
 namespace gs::pose {
 
@@ -101,22 +102,6 @@ double centre_distance(const Pose& a, const Pose& b) {
   return std::sqrt((ca[0] - cb[0]) * (ca[0] - cb[0]) + (ca[1] - cb[1]) * (ca[1] - cb[1]) + (ca[2] - cb[2]) * (ca[2] - cb[2]));
 }
 
-// A global image descriptor: the grey levels of a small image, zero mean, unit norm (their dot
-// product is the normalised cross-correlation of two images of the same size).
-void describe(const float* rgb, size_t pixels, float* out) {
-  double mean = 0;
-  for (size_t i = 0; i < pixels; ++i) mean += (rgb[3 * i] + rgb[3 * i + 1] + rgb[3 * i + 2]) / 3.0;
-  mean /= double(std::max<size_t>(pixels, 1));
-  double sq = 0;
-  for (size_t i = 0; i < pixels; ++i) {
-    const double g = (rgb[3 * i] + rgb[3 * i + 1] + rgb[3 * i + 2]) / 3.0 - mean;
-    out[i] = float(g);
-    sq += g * g;
-  }
-  const float inv = sq > 0 ? float(1.0 / std::sqrt(sq)) : 0.0f;
-  for (size_t i = 0; i < pixels; ++i) out[i] *= inv;
-}
-
 // v (RGB) -> (sqrt(3) Y, w (B - Y), w (R - Y)) in place (see Impl::evaluate).
 inline void to_luma_chroma(float v[3], float w) {
   const float y = 0.299f * v[0] + 0.587f * v[1] + 0.114f * v[2];
@@ -188,7 +173,7 @@ struct Tracker::Impl {
           ++n;
         }
       k.n = n;
-      if (l == levels - 1) describe(lvl_rgb.data(), size_t(w) * size_t(h), key_desc.data());  // lvl_rgb: the coarsest level
+      if (l == levels - 1) detail::grey_descriptor(lvl_rgb.data(), size_t(w) * size_t(h), key_desc.data());  // lvl_rgb: the coarsest level
     }
     key_pose = p;
     key_rmse = -1;  // set by the next frame's alignment (its own frame's residual is the model's alone)
@@ -469,7 +454,7 @@ struct Tracker::Impl {
   // Ranks the candidates and the keyframe ring by their descriptors against the frame's.
   void rank() {
     const FrameLevel& c = frame[size_t(levels - 1)];
-    describe(c.rgb.data(), size_t(c.in.width) * size_t(c.in.height), frame_desc.data());
+    detail::grey_descriptor(c.rgb.data(), size_t(c.in.width) * size_t(c.in.height), frame_desc.data());
     ranked.clear();
     auto dist = [&](const float* d) {
       double dot = 0;
@@ -595,7 +580,7 @@ Status Tracker::set_candidates(const std::vector<Pose>& poses) {
   for (size_t i = 0; i < poses.size(); ++i) {
     GS_RETURN_IF_ERROR(d.registrar->render(d.camera(poses[i]), d.key_rgb.data()));
     io::box_downsample_float(d.key_rgb.data(), d.full.width, d.full.height, 3, f, d.lvl_rgb.data());
-    describe(d.lvl_rgb.data(), d.desc_dim, d.cand_desc.data() + i * d.desc_dim);
+    detail::grey_descriptor(d.lvl_rgb.data(), d.desc_dim, d.cand_desc.data() + i * d.desc_dim);
   }
   d.have_key = false;  // the keyframe buffers held the candidates' renders
   return poses.empty() ? Status::Ok() : d.warm_registrar(poses[0]);

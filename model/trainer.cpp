@@ -18,6 +18,7 @@
 #include "gs/platform/clock.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
+#include "image_descriptor.h"
 #include "trainer_state.h"
 
 namespace gs::model {
@@ -107,23 +108,29 @@ Status Trainer::Impl::plan(const TrainOptions& options) {
   pruned.resize(c, 0);
   uint64_t bytes = Renderer::plan_bytes(*rc);
   registrar.reset();
-  // A run that may hold views back keeps its registrar even once none is held (a resumed run
-  // learns which views are held from its checkpoint, after this plan).
-  if (options.pose_register_every > 0 || options.held_back_register_every > 0) {
-    pose::RegisterOptions ro;
-    ro.max_iterations_per_level = 10;
-    for (int ch = 0; ch < 3; ++ch) ro.background[ch] = opt.background.rgb[ch];
-    Expected<std::unique_ptr<pose::Registrar>> reg = pose::Registrar::create(model, plan_w, plan_h, ro, pool, kernels, c);
-    if (!reg.ok()) return reg.status();
-    registrar = std::move(reg).value();
-    bytes += registrar->planned_bytes();
-  }
+  GS_RETURN_IF_ERROR(plan_registrar(options));
+  if (registrar) bytes += registrar->planned_bytes();
   bytes += uint64_t(model.positions.size() + model.offsets.size() + model.log_scales.size() + model.features.size() +
                     model.image_raw.size()) * 4;
   for (const detail::ParamGroup& g : groups) bytes += uint64_t(g.grad.size() * 3) * 4;
   bytes += uint64_t(ws.X.size() * 3 + ws.means.size() * 4 + ws.quats.size() * 2 + ws.rgb.size() * 2) * 4;
   bytes += uint64_t(c * K) * (4 + 4 + sizeof(cand[0]) + sizeof(cell_scores[0]));
   planned_bytes = bytes;
+  return Status::Ok();
+}
+
+Status Trainer::Impl::plan_registrar(const TrainOptions& options) {
+  // Registration passes, or held-back views to register. A run that held views keeps its
+  // registrar once none is held (rows may grow: plan() re-plans it for them).
+  const bool holds = options.held_back_register_every > 0 && (held_count() > 0 || repaired_count() > 0 || registrar_for_held);
+  if (options.pose_register_every <= 0 && !holds) return Status::Ok();
+  registrar_for_held = registrar_for_held || holds;
+  pose::RegisterOptions ro;
+  ro.max_iterations_per_level = 10;
+  for (int ch = 0; ch < 3; ++ch) ro.background[ch] = opt.background.rgb[ch];
+  Expected<std::unique_ptr<pose::Registrar>> reg = pose::Registrar::create(model, plan_w, plan_h, ro, pool, kernels, cap());
+  if (!reg.ok()) return reg.status();
+  registrar = std::move(reg).value();
   return Status::Ok();
 }
 
@@ -222,16 +229,80 @@ void Trainer::Impl::adopt_pose(size_t v, const Pose& pose) {
   pose_steps[v] = 0;
 }
 
+void Trainer::Impl::describe_photos() {
+  const int dw = pose::detail::kDescriptorWidth, dh = pose::detail::kDescriptorHeight;
+  const size_t dim = size_t(dw) * size_t(dh);
+  descriptors.assign(views.size() * dim, 0.0f);
+  std::vector<float> small(dim * 3);
+  for (size_t i = 0; i < views.size(); ++i) {
+    const io::Image8 s = io::resize_area(photo(i), dw, dh);
+    for (size_t j = 0; j < small.size(); ++j) small[j] = float(s.pixels[j]);
+    pose::detail::grey_descriptor(small.data(), dim, &descriptors[i * dim]);
+  }
+}
+
+int Trainer::Impl::held_starts(size_t v, Pose* starts) const {
+  int n = 0;
+  starts[n++] = view_cameras[v].pose;
+  auto add = [&](size_t u) {
+    for (int i = 1; i < n; ++i)
+      if (std::memcmp(&starts[i], &view_cameras[u].pose, sizeof(Pose)) == 0) return;
+    if (n < kHeldStarts) starts[n++] = view_cameras[u].pose;
+  };
+  // Capture order: the nearest trained view before and after (views are sorted by name, which for
+  // frames of a video or a photo series is the order they were taken in).
+  for (size_t u = v; u-- > 0;)
+    if (!held[u]) { add(u); break; }
+  for (size_t u = v + 1; u < views.size(); ++u)
+    if (!held[u]) { add(u); break; }
+  if (descriptors.empty()) return n;
+  // Image similarity: the two trained views whose photos correlate best with this one.
+  const size_t dim = size_t(pose::detail::kDescriptorWidth) * pose::detail::kDescriptorHeight;
+  const float* dv = &descriptors[v * dim];
+  size_t best[2] = {v, v};
+  float score[2] = {-2.0f, -2.0f};
+  for (size_t u = 0; u < views.size(); ++u) {
+    if (held[u] || u == v) continue;
+    const float* du = &descriptors[u * dim];
+    float dot = 0;
+    for (size_t i = 0; i < dim; ++i) dot += dv[i] * du[i];
+    if (dot > score[0]) best[1] = best[0], score[1] = score[0], best[0] = u, score[0] = dot;
+    else if (dot > score[1]) best[1] = u, score[1] = dot;
+  }
+  for (size_t b : best)
+    if (b != v) add(b);
+  return n;
+}
+
 Status Trainer::Impl::register_held(int it, int* released) {
   *released = 0;
-  registrar->mutable_options().finest_downscale = std::max(2, downscale_at(it));
+  // At full resolution, whatever this iteration trains at (a registration pass stops at half of
+  // it): the pose a held view rejoins at is the one it keeps, since joint optimisation moves a view
+  // only a few hundredths of a degree once the rates have decayed and fixed poses never move. Few
+  // views are held, so the cost is small.
+  registrar->mutable_options().finest_downscale = 1;
+  if (descriptors.empty()) describe_photos();  // a resumed run that holds views (once)
   for (size_t v = 0; v < views.size(); ++v) {
+    if (repaired[v]) {
+      pose::RegisterResult r;
+      GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
+      if (r.converged() && r.final_rmse < r.initial_rmse) adopt_pose(v, r.pose);
+      continue;
+    }
     if (!held[v]) continue;
-    pose::RegisterResult r;
-    GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
-    if (!r.converged()) continue;
-    adopt_pose(v, r.pose);
+    Pose starts[kHeldStarts];
+    const int n = held_starts(v, starts);
+    bool found = false;
+    pose::RegisterResult best;
+    for (int i = 0; i < n; ++i) {
+      pose::RegisterResult r;
+      GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, starts[i], &r));
+      if (r.converged() && (!found || r.final_rmse < best.final_rmse)) best = r, found = true;
+    }
+    if (!found) continue;
+    adopt_pose(v, best.pose);
     held[v] = 0;
+    repaired[v] = 1;
     ++*released;
   }
   return Status::Ok();
@@ -364,6 +435,8 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   d.held = options.held_back_views.empty() ? std::vector<uint8_t>(train_views.size(), 0) : options.held_back_views;
   d.coarse_end = options.coarse_fraction * double(options.iterations);
   for (uint8_t& h : d.held) h = h ? 1 : 0;
+  d.repaired.assign(train_views.size(), 0);
+  if (d.held_count() > 0) d.describe_photos();
   GS_RETURN_IF_ERROR(d.plan(options));
   if (d.paper()) d.refresh_image_features();
   return t;
@@ -465,7 +538,8 @@ Status Trainer::step(IterationStats* stats) {
   }
   int released = -1;
   if (d.registrar && d.opt.held_back_register_every > 0 && it % d.opt.held_back_register_every == 0 &&
-      it >= d.opt.held_back_register_from && it <= d.opt.held_back_register_until && d.held_count() > 0) {
+      it >= d.opt.held_back_register_from && it <= d.opt.held_back_register_until &&
+      (d.held_count() > 0 || d.repaired_count() > 0)) {
     GS_RETURN_IF_ERROR(d.register_held(it, &released));
     refresh = refresh || (d.paper() && released > 0);
   }

@@ -68,6 +68,10 @@ struct Trainer::Impl {
   std::vector<int32_t> view_order;
   size_t view_pos = 0;
   std::vector<uint8_t> held;  // [views] 1: held back (not trained on) until registered
+  std::vector<uint8_t> repaired;  // [views] 1: released by registration (register_held polishes it)
+  // [views, kDescriptorWidth x kDescriptorHeight] grey descriptors of the photos (image_descriptor.h),
+  // for the starts of held-back views' registrations; empty until a view is held.
+  std::vector<float> descriptors;
   // Densification statistics (capacity rows).
   std::vector<float> opacity_accum;   // [cap]
   std::vector<int32_t> anchor_seen;   // [cap]
@@ -101,6 +105,7 @@ struct Trainer::Impl {
   bool paper() const { return uses_image_features(model.config.image_features); }
   ModelParamsT<float> params() const { return detail::model_params(model); }
   int held_count() const { return int(std::count(held.begin(), held.end(), uint8_t(1))); }
+  int repaired_count() const { return int(std::count(repaired.begin(), repaired.end(), uint8_t(1))); }
   // The photo of view v as the model should render it (composited when the view has a mask).
   const io::Image8& photo(size_t v) const { return composited[v].empty() ? views[v]->image : composited[v]; }
 
@@ -112,6 +117,10 @@ struct Trainer::Impl {
   // registrar, the densification statistics and growth scratch (resize: live rows keep their
   // values), and the byte count. Called at creation and after the rows grow.
   Status plan(const TrainOptions& options);
+  // Creates the registrar when the run registers (see plan_registrar in trainer.cpp); a resumed run
+  // whose checkpoint holds views calls it after loading.
+  Status plan_registrar(const TrainOptions& options);
+  bool registrar_for_held = false;  // the registrar was planned for held-back views
   // Dry run of the decoder's visibility test: the most live anchors one training view sees.
   size_t most_visible_anchors() const;
   // Memory follows the scene: the rows (model, Adam moments, gradients, statistics, pipeline) grow
@@ -128,8 +137,16 @@ struct Trainer::Impl {
   // View v takes a pose found by registration: its Adam state starts again.
   void adopt_pose(size_t v, const Pose& pose);
   // Registers every held-back view against the current model; a converged one gets that pose
-  // (Adam state reset) and joins training. Returns how many joined.
+  // (Adam state reset) and joins training. Returns how many joined. Several starts per view: its
+  // own pose, the poses of the trained views next to it in capture order (by name) and of those
+  // whose photos look most like it (descriptors); the converged result with the lowest residual wins.
+  // Views released by an earlier pass are registered again from their pose (the model is better
+  // now) and keep the result when it converges to a lower residual.
   Status register_held(int it, int* released);
+  // Up to kHeldStarts start poses for held view v (see register_held); returns how many.
+  static constexpr int kHeldStarts = 5;
+  int held_starts(size_t v, Pose* starts) const;
+  void describe_photos();  // fills descriptors
   // Target at resolution divisor s (s x s block means, matching scaled_camera), composited on bg.
   void load_target(const io::DatasetView& v, int s, const float bg[3]);
   // Coarse-to-fine level (0 = coarsest) of iteration it when the coarse phase ends at `end`.

@@ -221,6 +221,9 @@ Command add_train_command(CLI::App& parent) {
   sub->add_flag("!--no-carve-points", o->carve_points,
                 "A dataset without a point cloud whose training views all have masks (alpha or masks/) starts from "
                 "random points in the cameras' common view, not from points carved from the masks (the visual hull)");
+  sub->add_flag("!--no-view-check", o->view_check,
+                "Train on every view whatever its pose: skip the check of each training view's agreement with the SfM points, "
+                "which holds back views whose pose the points contradict (docs/POSES.md)");
   sub->add_flag("!--no-point-align", o->point_align,
                 "With --optimize-poses: skip the photometric alignment of the poses to the SfM points before training");
   sub->add_option("--pose-init", o->pose_init,

@@ -361,11 +361,12 @@ Status parse_pose(const std::string& text, const std::string& what, Pose* out) {
 
 Status parse_pose_noise(const std::string& spec, PoseNoise* out) {
   static const char* const kForms =
-      "accepted forms: none | barf:SIGMA | rot:DEG,trans:FRAC (either part may be omitted), each optionally followed by "
-      ",seed:N; e.g. barf:0.15 or rot:10,trans:0.1,seed:3";
+      "accepted forms: none | barf:SIGMA | rot:DEG,trans:FRAC (either part may be omitted; rot:MIN-MAX draws the angle "
+      "per view), each optionally followed by ,seed:N and ,views:N (only N views); e.g. barf:0.15, rot:10,trans:0.1,seed:3 "
+      "or rot:10-40,views:3";
   const std::string head = "pose noise \"" + spec + "\": ";
   PoseNoise r;
-  bool none = false, barf = false, rot = false, trans = false, seed = false;
+  bool none = false, barf = false, rot = false, trans = false, seed = false, views = false;
   std::vector<std::string> tokens;
   size_t start = 0;
   for (;;) {
@@ -384,18 +385,32 @@ Status parse_pose_noise(const std::string& spec, PoseNoise* out) {
     const size_t colon = tok.find(':');
     if (colon == std::string::npos) return invalid_argument(head + "unknown token \"" + tok + "\"; " + kForms);
     const std::string key = trim(tok.substr(0, colon)), val = trim(tok.substr(colon + 1));
-    bool* seen = key == "barf" ? &barf : key == "rot" ? &rot : key == "trans" ? &trans : key == "seed" ? &seed : nullptr;
+    bool* seen = key == "barf" ? &barf : key == "rot" ? &rot : key == "trans" ? &trans : key == "seed" ? &seed
+               : key == "views" ? &views : nullptr;
     if (!seen) return invalid_argument(head + "unknown token \"" + tok + "\"; " + kForms);
     if (*seen) return invalid_argument(head + "\"" + key + "\" given twice; " + kForms);
     *seen = true;
-    if (key == "seed") {
+    if (key == "seed" || key == "views") {
       errno = 0;
       char* end = nullptr;
       const unsigned long long s = val.empty() || val[0] == '-' || val[0] == '+' ? 0 : std::strtoull(val.c_str(), &end, 10);
-      if (val.empty() || val[0] == '-' || val[0] == '+' || end != val.c_str() + val.size() || errno == ERANGE) {
-        return invalid_argument(head + "bad token \"" + tok + "\": the seed must be a non-negative integer; " + kForms);
+      if (val.empty() || val[0] == '-' || val[0] == '+' || end != val.c_str() + val.size() || errno == ERANGE ||
+          (key == "views" && s == 0)) {
+        return invalid_argument(head + "bad token \"" + tok + "\": the " + (key == "seed" ? "seed" : "view count") + " must be a " +
+                                (key == "seed" ? "non-negative" : "positive") + " integer; " + kForms);
       }
-      r.seed = uint64_t(s);
+      if (key == "seed") r.seed = uint64_t(s);
+      else r.views = size_t(s);
+      continue;
+    }
+    if (key == "rot" && val.find('-', 1) != std::string::npos) {  // rot:MIN-MAX
+      const size_t dash = val.find('-', 1);
+      double lo = 0, hi = 0;
+      if (!parse_double(trim(val.substr(0, dash)), &lo) || !parse_double(trim(val.substr(dash + 1)), &hi) || !std::isfinite(lo) ||
+          !std::isfinite(hi) || lo < 0 || hi > 180 || !(lo < hi))
+        return invalid_argument(head + "bad token \"" + tok + "\": a rotation range must be MIN-MAX with 0 <= MIN < MAX <= 180 deg; " + kForms);
+      r.rotation_deg = lo;
+      r.rotation_max_deg = hi;
       continue;
     }
     double x = 0;
@@ -413,6 +428,7 @@ Status parse_pose_noise(const std::string& spec, PoseNoise* out) {
   const int kinds = int(none) + int(barf) + int(rot || trans);
   if (kinds == 0) return invalid_argument(head + "no noise kind given; " + kForms);
   if (kinds > 1) return invalid_argument(head + "none, barf and rot/trans exclude each other; " + kForms);
+  if (views && none) return invalid_argument(head + "\"views\" needs a noise kind; " + kForms);
   r.kind = none ? PoseNoise::kNone : barf ? PoseNoise::kBarf : PoseNoise::kFixed;
   *out = r;
   return Status::Ok();
@@ -422,18 +438,32 @@ std::string describe(const PoseNoise& noise) {
   const std::string seed = " (seed " + std::to_string(noise.seed) + ")";
   switch (noise.kind) {
     case PoseNoise::kBarf:
-      return "barf sigma " + fmt(noise.sigma) + seed;
+      return "barf sigma " + fmt(noise.sigma) + seed + (noise.views > 0 ? " on " + std::to_string(noise.views) + " views" : "");
     case PoseNoise::kFixed:
-      return "rotation " + fmt(noise.rotation_deg) + " deg, translation " + fmt(noise.translation_frac) + " x radius" + seed;
+      return "rotation " + fmt(noise.rotation_deg) + (noise.rotation_max_deg > noise.rotation_deg ? "-" + fmt(noise.rotation_max_deg) : "") +
+             " deg, translation " + fmt(noise.translation_frac) + " x radius" + seed +
+             (noise.views > 0 ? " on " + std::to_string(noise.views) + " views" : "");
     case PoseNoise::kNone:
       break;
   }
   return "none";
 }
 
-void perturb_poses(const PoseNoise& noise, const double scene_centre[3], double scene_radius, Pose* poses, size_t n) {
+void perturb_poses(const PoseNoise& noise, const double scene_centre[3], double scene_radius, Pose* poses, size_t n,
+                   const uint8_t* eligible) {
   if (noise.kind == PoseNoise::kNone) return;
+  std::vector<uint8_t> chosen(n);
+  for (size_t i = 0; i < n; ++i) chosen[i] = (eligible == nullptr || eligible[i]) && noise.views == 0;
+  if (noise.views > 0) {
+    std::vector<size_t> order;
+    for (size_t i = 0; i < n; ++i)
+      if (eligible == nullptr || eligible[i]) order.push_back(i);
+    ViewRng pick(noise.seed, ~uint64_t(0));  // a stream no view uses
+    for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[size_t(pick.uniform() * double(i)) % i]);
+    for (size_t i = 0; i < std::min(order.size(), noise.views); ++i) chosen[order[i]] = 1;
+  }
   for (size_t i = 0; i < n; ++i) {
+    if (!chosen[i]) continue;
     ViewRng rng(noise.seed, uint64_t(i));
     double R[9], t[3];
     to_double(poses[i], R, t);
@@ -463,7 +493,10 @@ void perturb_poses(const PoseNoise& noise, const double scene_centre[3], double 
       double axis[3], dir[3];
       rng.unit_vector(axis);
       rng.unit_vector(dir);
-      const double angle = noise.rotation_deg * kPi / 180;
+      const double deg = noise.rotation_max_deg > noise.rotation_deg
+                             ? noise.rotation_deg + (noise.rotation_max_deg - noise.rotation_deg) * rng.uniform()
+                             : noise.rotation_deg;
+      const double angle = deg * kPi / 180;
       const double phi[3] = {angle * axis[0], angle * axis[1], angle * axis[2]};
       double E[9], C[3];
       so3_exp(phi, E);

@@ -40,11 +40,11 @@ Status apply_pose_noise(io::Dataset* ds, const std::string& spec, const std::str
   // Each view draws its own stream (seeded by its index in the whole dataset), so which views are
   // perturbed does not change any one view's noise.
   std::vector<Pose> all = truth->poses;
-  pose::perturb_poses(noise, truth->centre, truth->radius, all.data(), all.size());
-  for (size_t i = 0; i < ds->views.size(); ++i) {
-    const bool test = ds->views[i].is_test;
-    if (which == "all" || (which == "test") == test) ds->views[i].camera.pose = all[i];
-  }
+  std::vector<uint8_t> eligible(all.size());
+  for (size_t i = 0; i < ds->views.size(); ++i) eligible[i] = which == "all" || (which == "test") == ds->views[i].is_test;
+  pose::perturb_poses(noise, truth->centre, truth->radius, all.data(), all.size(), eligible.data());
+  for (size_t i = 0; i < ds->views.size(); ++i)
+    if (eligible[i]) ds->views[i].camera.pose = all[i];
   return Status::Ok();
 }
 

@@ -54,6 +54,7 @@ void for_each_recorded_option(TrainRunOptions* a, Visit&& visit) {
   visit("lpips-weights", &a->lpips_weights, false);
   // Only the start of a run (a resume starts from its checkpoint), so not a model option.
   visit("carve-points", &a->carve_points, false);
+  visit("view-check", &a->view_check, false);
 }
 
 }  // namespace
@@ -177,7 +178,8 @@ std::string run_json(const TrainRunOptions& a, const SceneFrame& frame) {
                   {"feature-refresh", a.feature_refresh},
                   {"pose-lr", a.pose_lr},               {"point-align", a.point_align},
                   {"register-passes", a.register_passes}, {"pose-init", a.pose_init},
-                  {"sfm-images", a.sfm_images},         {"carve-points", a.carve_points}};
+                  {"sfm-images", a.sfm_images},         {"carve-points", a.carve_points},
+                  {"view-check", a.view_check}};
   // Only a scene trained in a frame of its own records it (an ordinary run.json is as before).
   if (!frame.identity())
     j["scene_frame"] = {{"centre", {frame.centre[0], frame.centre[1], frame.centre[2]}}, {"scale", frame.scale},
@@ -216,10 +218,12 @@ void set_run_length(const TrainRunOptions& a, int iterations, model::TrainOption
       t.pose_register_until = iterations / 2;
     }
   }
-  // Views SfM could not register keep their given pose, which may be far off: they are held back
-  // from training and registered against the model every 5 % of the run from 20 % to 60 % of it
-  // (earlier, the model is too rough to register against), each joining once it converges.
-  if (a.optimize_poses && a.pose_init == "sfm") {
+  // Views SfM could not register keep their given pose, which may be far off, and views the SfM
+  // points contradict (TrainRunOptions::view_check) may be wrong: they are held back from training
+  // and registered against the model every 5 % of the run from 20 % to 60 % of it (earlier, the
+  // model is too rough to register against), each joining once it converges. The trainer only
+  // plans a registrar when a view is held, so a run that holds none pays nothing for this.
+  {
     t.held_back_register_every = std::max(1, iterations / 20);
     t.held_back_register_from = iterations / 5;
     t.held_back_register_until = iterations * 3 / 5;

@@ -10,6 +10,7 @@
 #include "gs/jobs/run_folder.h"
 #include "gs/model/point_alignment.h"
 #include "gs/model/register.h"
+#include "gs/stats.h"
 #include "json_util.h"
 #include "text_util.h"
 #include "train_session_state.h"
@@ -155,6 +156,45 @@ Status TrainSession::Impl::align_to_points(const TrainProgressFn& say) {
                                (rep.discarded ? std::string("within the method's precision, so every view keeps its SfM pose")
                                               : std::to_string(rep.reverted_views.size()) +
                                                     " views moved over 3x the median kept their start pose")));
+  return Status::Ok();
+}
+
+Status TrainSession::Impl::check_views(const TrainProgressFn& say) {
+  std::vector<Camera> cams;
+  std::vector<const io::Image8*> images;
+  std::vector<io::Image8> composited;  // masked views: compared as they are trained (on the background)
+  composited.reserve(train_views.size());
+  for (const io::DatasetView* v : train_views) {
+    cams.push_back(v->camera);
+    if (v->mask.empty()) {
+      images.push_back(&v->image);
+    } else {
+      const float black[3] = {0, 0, 0};
+      composited.push_back(io::composite_rgb8(v->image, v->mask, black));
+      images.push_back(&composited.back());
+    }
+  }
+  std::vector<pose::ViewPointAgreement> scores;
+  const pose::PointAlignOptions defaults;
+  const size_t npoints = dataset.points_xyz.size() / 3;
+  GS_RETURN_IF_ERROR(pose::score_views_against_points(dataset.points_xyz.data(),
+                                                      dataset.points_rgb.empty() ? nullptr : dataset.points_rgb.data(), npoints,
+                                                      images, cams, defaults.huber, defaults.max_points, pool.get(), &scores));
+  suspect = pose::suspect_views(scores);
+  nlohmann::json per_view = nlohmann::json::object(), flagged = nlohmann::json::array();
+  std::vector<double> agree, chance;
+  for (size_t i = 0; i < scores.size(); ++i) {
+    per_view[train_names[i]] = {{"points", scores[i].visible}, {"agree", scores[i].agree}, {"chance", scores[i].chance}};
+    agree.push_back(scores[i].agree), chance.push_back(scores[i].chance);
+    if (suspect[i]) flagged.push_back(train_names[i]);
+  }
+  view_check = {{"suspect", flagged}, {"median_agree", median(agree)}, {"median_chance", median(chance)}, {"views", per_view}};
+  std::string names;
+  for (const auto& f : flagged) names += (names.empty() ? "" : ", ") + f.get<std::string>();
+  say(text_event(TrainEvent::kStage, "view check against the SfM points: median agreement " + fixed(median(agree), 3) + " (chance " +
+                                         fixed(median(chance), 3) + "); " +
+                                         (flagged.empty() ? std::string("no view contradicts them")
+                                                          : std::to_string(flagged.size()) + " suspect (" + names + ")")));
   return Status::Ok();
 }
 

@@ -275,11 +275,25 @@ Status TrainRun::start() {
 }
 
 nlohmann::json TrainRun::held_back_json() const {
-  nlohmann::json still = nlohmann::json::array();
+  // Why each view was held back at the start (a resumed run's session did not check again: its
+  // lists are empty, still_held comes from the checkpoint), and where those views are now.
+  nlohmann::json unregistered = nlohmann::json::array(), suspect = nlohmann::json::array();
+  nlohmann::json still = nlohmann::json::array(), repaired = nlohmann::json::array();
   const std::vector<uint8_t>& held = trainer_->held_back();
-  for (size_t i = 0; i < held.size(); ++i)
+  size_t at_start = 0;
+  for (size_t i = 0; i < held.size(); ++i) {
+    const bool unreg = i < d_->sfm_registered.size() && !d_->sfm_registered[i];
+    const bool susp = i < d_->suspect.size() && d_->suspect[i];
+    if (unreg) unregistered.push_back(d_->train_names[i]);
+    if (susp) suspect.push_back(d_->train_names[i]);
+    if (unreg || susp) ++at_start;
     if (held[i]) still.push_back(d_->train_names[i]);
-  return nlohmann::json{{"at_start", std::count(d_->sfm_registered.begin(), d_->sfm_registered.end(), uint8_t(0))},
+    else if (unreg || susp) repaired.push_back(d_->train_names[i]);
+  }
+  return nlohmann::json{{"at_start", at_start},
+                        {"not_registered_by_sfm", unregistered},
+                        {"contradicted_by_points", suspect},
+                        {"released_by_registration", repaired},
                         {"still_held", still}};
 }
 
@@ -289,9 +303,10 @@ nlohmann::json TrainRun::pose_json() const {
                         {"noise_on", a_.pose_noise_on},
                         {"optimized", a_.optimize_poses},
                         {"scene_radius", d_->truth.radius * d_->truth.unit},
-                        {"train_input", pose_errors_json(d_->input_errors, false)},
+                        {"train_input", pose_errors_json(d_->input_errors, true, d_->train_names)},
                         {"sfm_init", d_->sfm_init},
                         {"point_alignment", d_->point_alignment},
+                        {"view_check", d_->view_check},
                         {"train_final", pose_errors_json(d_->errors(now, true), true, d_->train_names)},
                         {"train_final_unaligned", pose_errors_json(d_->errors(now, false), false)},
                         {"held_back", held_back_json()}};

@@ -116,6 +116,17 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
     if (points_meaningful) GS_RETURN_IF_ERROR(d.align_to_points(say));
     else say(text_event(TrainEvent::kNote, "point alignment skipped: the dataset's points are random (no point cloud)"));
   }
+  if (options.view_check && points_meaningful && !options.resume) {
+    GS_RETURN_IF_ERROR(d.check_views(say));
+    std::vector<uint8_t>& held = resolved->train.held_back_views;
+    if (held.empty()) held.assign(d.train_views.size(), 0);
+    for (size_t i = 0; i < held.size(); ++i) held[i] = held[i] || d.suspect[i];
+    if (std::find(held.begin(), held.end(), uint8_t(0)) == held.end()) {
+      say(text_event(TrainEvent::kNote, "every training view is suspect or unregistered: the view check holds none back"));
+      for (size_t i = 0; i < held.size(); ++i) held[i] = d.sfm_registered.empty() ? 0 : !d.sfm_registered[i];
+    }
+    if (std::find(held.begin(), held.end(), uint8_t(1)) == held.end()) held.clear();
+  }
 
   d.kernels = options.isa.empty() ? &simd::best_kernel_table() : simd::kernel_table_by_name(options.isa.c_str());
   if (!d.kernels) return invalid_argument("--isa: kernel table '" + options.isa + "' is not compiled in or not supported by this CPU");

@@ -32,6 +32,8 @@ struct TrainSession::Impl {
   pose::PoseErrors input_errors;
   nlohmann::json sfm_init, point_alignment;  // stage reports for results.json
   std::vector<uint8_t> sfm_registered;       // [training views] 1 where SfM registered the view
+  nlohmann::json view_check;                 // the point-agreement check's report for results.json
+  std::vector<uint8_t> suspect;              // [training views] 1 where the points say the pose is wrong
   std::unique_ptr<platform::ThreadPool> pool;
   const simd::KernelTable* kernels = nullptr;
   std::unique_ptr<model::Trainer> trainer;
@@ -56,6 +58,11 @@ struct TrainSession::Impl {
   Status init_by_sfm(const std::string& work_dir, const TrainProgressFn& say);
   // Stage 1: align the training poses to the SfM points (photometric, no model needed).
   Status align_to_points(const TrainProgressFn& say);
+  // Stage 2: every training view's agreement with the SfM points at its pose (no model needed);
+  // fills `suspect` and `view_check` (pose::suspect_views). Views whose pose the points contradict
+  // are held back from training: with pose optimisation until a registration against the model
+  // places them (then they are repaired), without it for the whole run.
+  Status check_views(const TrainProgressFn& say);
 };
 
 // The message when pose_init "sfm" needs an initialiser and none was given.

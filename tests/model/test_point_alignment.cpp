@@ -162,6 +162,68 @@ TEST_CASE("point alignment: moves within its precision are discarded and outlyin
   CHECK(after < 0.25 * before);
 }
 
+TEST_CASE("view check: fox views placed 10-40 degrees wrong agree with the points at chance level (shared data)") {
+  const std::string root = std::string(GS_SOURCE_DIR) + "/../shared/data/fox";
+  if (!std::filesystem::exists(root + "/sparse/0")) {
+    MESSAGE("skipped: " << root << "/sparse/0 is absent");
+    return;
+  }
+  Expected<io::Dataset> ds = io::load_dataset(root);
+  REQUIRE_MESSAGE(ds.ok(), ds.status().to_string());
+  std::vector<Camera> truth;
+  std::vector<const io::Image8*> images;
+  for (const io::DatasetView& v : ds->views)
+    if (!v.is_test) truth.push_back(v.camera), images.push_back(&v.image);
+  std::vector<Pose> poses;
+  for (const Camera& c : truth) poses.push_back(c.pose);
+  double centre[3], radius = 0;
+  pose::scene_frame(poses.data(), poses.size(), centre, &radius);
+  platform::ThreadPool pool(2);
+  const size_t n = ds->points_xyz.size() / 3;
+  // COLMAP's own poses: no view is suspect (the points agree with every view well above chance).
+  std::vector<ViewPointAgreement> scores;
+  REQUIRE(score_views_against_points(ds->points_xyz.data(), ds->points_rgb.data(), n, images, truth, 0.1, 20000, &pool, &scores).ok());
+  REQUIRE(scores.size() == truth.size());
+  const std::vector<uint8_t> clean = suspect_views(scores);
+  CHECK(std::count(clean.begin(), clean.end(), uint8_t(1)) == 0);
+  // Three views turned 10-40 degrees about their centres (three seeds): exactly those are suspect.
+  for (uint64_t seed : {1, 2, 3}) {
+    PoseNoise noise;
+    REQUIRE(parse_pose_noise("rot:10-40,views:3,seed:" + std::to_string(seed), &noise).ok());
+    std::vector<Pose> moved = poses;
+    perturb_poses(noise, centre, radius, moved.data(), moved.size());
+    std::vector<Camera> cams = truth;
+    for (size_t i = 0; i < cams.size(); ++i) cams[i].pose = moved[i];
+    REQUIRE(score_views_against_points(ds->points_xyz.data(), ds->points_rgb.data(), n, images, cams, 0.1, 20000, &pool, &scores).ok());
+    const std::vector<uint8_t> flags = suspect_views(scores);
+    for (size_t i = 0; i < cams.size(); ++i) {
+      const double off = rotation_error_deg(cams[i].pose, truth[i].pose);
+      INFO("seed " << seed << " view " << i << ": " << off << " degrees off, agree " << scores[i].agree << ", chance "
+                   << scores[i].chance << ", points " << scores[i].visible);
+      CHECK(bool(flags[i]) == (off > 1));
+    }
+  }
+}
+
+TEST_CASE("view check: bad inputs are refused, and too little evidence flags nothing") {
+  const float xyz[3 * 12] = {};
+  io::Image8 im;
+  im.width = 8, im.height = 6, im.channels = 3;
+  im.pixels.assign(8 * 6 * 3, 100);
+  Camera cam;
+  cam.intr = PinholeIntrinsics{8, 8, 4, 3, 8, 6};
+  std::vector<ViewPointAgreement> scores;
+  std::vector<Camera> two(2, cam);
+  two[1].intr.width = 9;
+  CHECK(score_views_against_points(xyz, nullptr, 12, {&im, &im}, two, 0.1, 100, nullptr, &scores).code() == StatusCode::kInvalidArgument);
+  CHECK(score_views_against_points(xyz, nullptr, 12, {&im}, two, 0.1, 100, nullptr, &scores).code() == StatusCode::kInvalidArgument);
+  // Fewer than 3 views, or a typical margin over chance under 0.1: no view is flagged.
+  CHECK(suspect_views({{100, 0.9, 0.1}, {100, 0.1, 0.1}}) == std::vector<uint8_t>{0, 0});
+  CHECK(suspect_views({{100, 0.2, 0.15}, {100, 0.2, 0.15}, {100, 0.0, 0.15}}) == std::vector<uint8_t>{0, 0, 0});
+  // Margins 0.6, 0.6, 0.05 and a view that sees few points: the last two are flagged.
+  CHECK(suspect_views({{100, 0.7, 0.1}, {100, 0.7, 0.1}, {100, 0.15, 0.1}, {20, 0.7, 0.1}}) == std::vector<uint8_t>{0, 0, 1, 1});
+}
+
 TEST_CASE("point alignment: bad inputs are refused") {
   const float xyz[3 * 12] = {};
   io::Image8 im;

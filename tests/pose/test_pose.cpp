@@ -632,6 +632,46 @@ TEST_CASE("fixed noise rotates about the camera centre by exactly the given angl
   }
 }
 
+TEST_CASE("pose noise on a few views with a range of angles (rot:MIN-MAX,views:N)") {
+  gs::pose::PoseNoise noise;
+  REQUIRE(gs::pose::parse_pose_noise("rot:10-40,views:3,seed:4", &noise).ok());
+  CHECK(noise.rotation_deg == 10);
+  CHECK(noise.rotation_max_deg == 40);
+  CHECK(noise.views == 3);
+  CHECK(gs::pose::describe(noise) == "rotation 10-40 deg, translation 0 x radius (seed 4) on 3 views");
+  for (const char* bad : {"rot:40-10", "rot:10-200", "rot:10-x", "rot:5,views:0", "rot:5,views:-2", "none,views:2"}) {
+    INFO(bad);
+    gs::pose::PoseNoise n;
+    CHECK(gs::pose::parse_pose_noise(bad, &n).code() == gs::StatusCode::kInvalidArgument);
+  }
+  const std::vector<gs::Pose> gt = camera_ring(40, 25);
+  double c[3], r = 0;
+  gs::pose::scene_frame(gt.data(), gt.size(), c, &r);
+  // Every fifth view is not eligible (a test view): never moved, never counted among the three.
+  std::vector<uint8_t> eligible(gt.size(), 1);
+  for (size_t i = 0; i < gt.size(); i += 5) eligible[i] = 0;
+  for (uint64_t seed : {1, 2, 3, 4, 5, 6}) {
+    noise.seed = seed;
+    std::vector<gs::Pose> p = gt;
+    gs::pose::perturb_poses(noise, c, r, p.data(), p.size(), eligible.data());
+    int moved = 0;
+    for (size_t i = 0; i < p.size(); ++i) {
+      const double a = angle_deg(p[i], gt[i]);
+      if (a < 1e-4) continue;
+      ++moved;
+      CHECK(eligible[i] == 1);
+      CHECK(a >= 10 - 1e-4);
+      CHECK(a <= 40 + 1e-4);
+    }
+    CHECK(moved == 3);
+  }
+  // Views:N above the eligible count moves all of them.
+  noise.views = 100;
+  std::vector<gs::Pose> p = gt;
+  gs::pose::perturb_poses(noise, c, r, p.data(), p.size(), eligible.data());
+  for (size_t i = 0; i < p.size(); ++i) CHECK((angle_deg(p[i], gt[i]) > 1) == bool(eligible[i]));
+}
+
 TEST_CASE("pose noise is deterministic and per view") {
   const std::vector<gs::Pose> gt = camera_ring(10, 24);
   double c[3], r = 0;

@@ -80,6 +80,11 @@ struct TrainRunOptions {
   std::string pose_noise = "none", pose_noise_on = "train";
   bool optimize_poses = false;
   bool point_align = true;
+  // Every training view's agreement with the SfM points at its pose before training (TrainSession,
+  // pose::suspect_views): views the points contradict are held back, with optimize_poses until a
+  // registration against the model places them, without it for the whole run. Needs SfM points
+  // (not random or carved ones).
+  bool view_check = true;
   int register_passes = 0;         // registration passes of every training pose over the first half
   std::string pose_init = "none";  // "none" or "sfm"
   std::string colmap = "colmap";   // the COLMAP program for pose_init "sfm"

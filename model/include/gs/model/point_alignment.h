@@ -59,5 +59,32 @@ Status align_poses_to_points(const float* xyz, const uint8_t* rgb, size_t n, con
                              std::vector<Camera>* cameras, const PointAlignOptions& options, platform::ThreadPool* pool,
                              PointAlignReport* report);
 
+// How well each view's image agrees with the SfM points at its pose, before any model exists: the
+// evidence "every view earns its place" (docs/POSES.md) starts from. Per view, the points in front,
+// inside the image and not behind nearer points (the same per-view z-buffer as the alignment) are
+// sampled at their projections; a point agrees when the colour there is within `huber` (colour
+// norm, values in [0, 1]) of the point's colour (the SfM colour when given, else the mean over the
+// other views that see it). The chance level is the same count with every point compared to the
+// sample of another visible point of the view (a fixed cyclic shift of the visible list): what a
+// pose that lines up nothing would score on this image, so the measure needs no scene constant.
+struct ViewPointAgreement {
+  size_t visible = 0;        // points seen (at full resolution)
+  double agree = 0;          // fraction of them that agree
+  double chance = 0;         // fraction that agree with a shifted point's sample
+};
+Status score_views_against_points(const float* xyz, const uint8_t* rgb, size_t n, const std::vector<const io::Image8*>& images,
+                                  const std::vector<Camera>& cameras, double huber, size_t max_points,
+                                  platform::ThreadPool* pool, std::vector<ViewPointAgreement>* scores);
+
+// Which views the point agreement says may be wrong: a view is suspect when its agreement above
+// its own chance level is less than a quarter of the typical view's (agree - chance < 0.25
+// (median agree - median chance)), or it sees fewer than a quarter of the median view's points.
+// A pose off by 10 degrees or more agrees at about chance level. Correct views can be suspect too:
+// an occluder without SfM points (snowmiku_plush's wardrobe door) or a strong change of exposure
+// hides the points behind it, which is why a suspect view is only held back until the model can
+// decide (docs/POSES.md). Returns one flag per view; none when fewer than 3 views or when the
+// typical margin is under 0.1 (the points say too little about this scene).
+std::vector<uint8_t> suspect_views(const std::vector<ViewPointAgreement>& scores);
+
 }  // namespace gs::pose
 

@@ -64,16 +64,23 @@ struct PoseNoise {
   enum Kind { kNone, kBarf, kFixed } kind = kNone;
   double sigma = 0;             // kBarf
   double rotation_deg = 0;      // kFixed
+  double rotation_max_deg = 0;  // kFixed, > rotation_deg: each view's angle uniform in [rotation_deg, this]
   double translation_frac = 0;  // kFixed, fraction of scene_radius
   uint64_t seed = 0;
+  size_t views = 0;             // > 0: only this many of the views, chosen by the seed (0: every view)
 };
-// "none", "barf:0.15", "rot:10,trans:0.1" (either part may be omitted, e.g. "rot:5");
-// optional ",seed:N". Errors name the bad token and list the accepted forms.
+// "none", "barf:0.15", "rot:10,trans:0.1" (either part may be omitted, e.g. "rot:5"; "rot:10-40"
+// draws each view's angle uniformly in [10, 40]); optional ",seed:N" and ",views:N" (perturb only
+// N views, e.g. a sound reconstruction with a few views placed wrong). Errors name the bad token and
+// list the accepted forms.
 Status parse_pose_noise(const std::string& spec, PoseNoise* out);
 std::string describe(const PoseNoise& noise);
 // Perturbs poses[0..n) in place. View i draws from a stream seeded by (noise.seed, i), so a view's
-// noise does not depend on how many views are perturbed.
-void perturb_poses(const PoseNoise& noise, const double scene_centre[3], double scene_radius, Pose* poses, size_t n);
+// noise does not depend on how many views are perturbed. With noise.views, which views are drawn
+// from a stream of their own (a seeded shuffle of 0..n-1, its first `views` entries).
+// eligible (optional, [n]): only views with a non-zero entry are perturbed or chosen.
+void perturb_poses(const PoseNoise& noise, const double scene_centre[3], double scene_radius, Pose* poses, size_t n,
+                   const uint8_t* eligible = nullptr);
 
 // Pose errors of estimates against ground truth (Part B section 10, BARF protocol).
 struct PoseErrors {
