@@ -239,6 +239,10 @@ Status Trainer::Impl::register_held(int it, int* released) {
 
 void Trainer::Impl::load_target(const io::DatasetView& v, int s, const float bg[3]) {
   io::composite_target(v.image, v.mask, s, bg, target.data(), pool);
+  ws.valid_pixels = nullptr;
+  if (v.valid.empty()) return;
+  io::valid_target(v.valid, s, valid_target.data());
+  ws.valid_pixels = valid_target.data();
 }
 
 int Trainer::Impl::coarse_level(int it, double end) const {
@@ -343,6 +347,8 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
                               std::to_string(v.camera.intr.height) + " RGB");
     if (!v.mask.empty() && (v.mask.channels != 1 || v.mask.width != v.image.width || v.mask.height != v.image.height))
       return invalid_argument("trainer: view '" + v.name + "' has a mask that is not one channel of its image's size");
+    if (!v.valid.empty() && (v.valid.channels != 1 || v.valid.width != v.image.width || v.valid.height != v.image.height))
+      return invalid_argument("trainer: view '" + v.name + "' has a valid-pixel map that is not one channel of its image's size");
     d.view_cameras.push_back(v.camera);
     d.composited.push_back(v.mask.empty() ? io::Image8{} : io::composite_rgb8(v.image, v.mask, options.background.rgb));
     max_w = std::max(max_w, v.camera.intr.width);
@@ -357,6 +363,7 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   d.plan_w = max_w;
   d.plan_h = max_h;
   d.target.assign(size_t(max_w) * size_t(max_h) * 3, 0.0f);
+  d.valid_target.assign(size_t(max_w) * size_t(max_h), 0);
   d.build_groups();
   d.rng.state = options.seed * 0x9E3779B97F4A7C15ull + 7;
   d.view_order.assign(train_views.size(), 0);

@@ -62,6 +62,7 @@ struct Trainer::Impl {
   detail::FloatBackend backend;
   StepWorkspace<float> ws;
   std::vector<float> target;  // [H, W, 3] of the current view
+  std::vector<uint8_t> valid_target;  // [H, W] its valid pixels (views with io::DatasetView::valid)
   std::vector<detail::ParamGroup> groups;  // offsets, log_scales, features, then the MLPs
   int iteration = 0;
   detail::SplitMix64 rng;
@@ -130,7 +131,8 @@ struct Trainer::Impl {
   // Registers every held-back view against the current model; a converged one gets that pose
   // (Adam state reset) and joins training. Returns how many joined.
   Status register_held(int it, int* released);
-  // Target at resolution divisor s (s x s block means, matching scaled_camera), composited on bg.
+  // Target at resolution divisor s (s x s block means, matching scaled_camera), composited on bg;
+  // a view with missing pixels (DatasetView::valid) sets ws.valid_pixels for the step (else null).
   void load_target(const io::DatasetView& v, int s, const float bg[3]);
   // Coarse-to-fine level (0 = coarsest) of iteration it when the coarse phase ends at `end`.
   int coarse_level(int it, double end) const;

@@ -46,6 +46,7 @@ void for_each_recorded_option(TrainRunOptions* a, Visit&& visit) {
   visit("pose-init", &a->pose_init, true);
   visit("sfm-images", &a->sfm_images, true);
   visit("max-width", &a->max_width, true);
+  visit("fisheye-fov", &a->fisheye_fov, true);
   visit("iterations", &a->iterations, false);
   visit("time-budget", &a->time_budget, false);
   visit("checkpoint-every", &a->checkpoint_every, false);
@@ -161,6 +162,7 @@ std::string run_json(const TrainRunOptions& a, const SceneFrame& frame) {
   j["format"] = "hbgs-run";
   j["dataset"] = absolute_path(a.dataset);
   j["max_width"] = a.max_width;
+  if (a.fisheye_fov != 0) j["fisheye_fov"] = a.fisheye_fov;  // only when set: an ordinary run.json is as before
   j["options"] = {{"iterations", a.iterations},         {"time-budget", a.time_budget},
                   {"image-features", a.image_features},
                   {"background", a.background},
@@ -178,6 +180,7 @@ std::string run_json(const TrainRunOptions& a, const SceneFrame& frame) {
                   {"pose-lr", a.pose_lr},               {"point-align", a.point_align},
                   {"register-passes", a.register_passes}, {"pose-init", a.pose_init},
                   {"sfm-images", a.sfm_images},         {"carve-points", a.carve_points}};
+  if (a.fisheye_fov != 0) j["options"]["fisheye-fov"] = a.fisheye_fov;
   // Only a scene trained in a frame of its own records it (an ordinary run.json is as before).
   if (!frame.identity())
     j["scene_frame"] = {{"centre", {frame.centre[0], frame.centre[1], frame.centre[2]}}, {"scale", frame.scale},

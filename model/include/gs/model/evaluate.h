@@ -25,6 +25,10 @@ class Trainer;
 
 struct ViewMetrics {
   std::string name;
+  // A view with pixels that have no source (io::DatasetView::valid: undistortion's outside) is
+  // measured over the others: the render takes the ground truth's values there, PSNR is over the
+  // valid pixels (psnr_u8_masked), SSIM is 1 - (1 - SSIM of the image) / (valid fraction) (the
+  // mean over the valid pixels when the missing ones' SSIM is 1), and LPIPS is of the filled image.
   double psnr = 0, ssim = 0;
   double lpips = -1;       // < 0: not computed (no weights)
   // Views with a mask (DatasetView::mask; < 0 otherwise): PSNR over the subject only (squared
