@@ -115,6 +115,8 @@ Expected<double> parse_time_budget(const std::string& text) {
 std::string model_options_json(TrainRunOptions a) {
   nlohmann::json j = nlohmann::json::object();
   for_each_recorded_option(&a, [&](const char* key, auto* field, bool model_option) {
+    // fisheye-fov only when set: the record of every other run (and its checkpoints) is as before.
+    if (std::string(key) == "fisheye-fov" && a.fisheye_fov == 0) return;
     if (model_option) j[key] = *field;
   });
   return j.dump();
