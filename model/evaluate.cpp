@@ -139,16 +139,17 @@ Expected<EvalResult> evaluate_with(const std::vector<const io::DatasetView*>& vi
       }
     }
     io::Image8 img = io::image_from_float_rgb(rgb.data(), w, h);  // clamps to [0, 1], rounds
-    const io::Image8 composited = io::composite_rgb8(v->image, v->mask, options.render.background);
+    io::Image8 composited = io::composite_rgb8(v->image, v->mask, options.render.background);
     const uint8_t* gt = composited.pixels.data();
-    // Pixels without a source (DatasetView::valid) take the ground truth's values in the render, so
-    // they add no error, and the figures are over the valid pixels (see ViewMetrics).
+    // Pixels without a source (DatasetView::valid) are 0 in both the render and the ground truth,
+    // so they add no error and what they held does not matter; the figures are over the valid
+    // pixels (see ViewMetrics).
     size_t missing = 0;
     if (!v->valid.empty()) {
       for (size_t p = 0; p < size_t(w) * size_t(h); ++p) {
         if (v->valid.pixels[p]) continue;
         ++missing;
-        for (size_t c = 0; c < 3; ++c) img.pixels[3 * p + c] = gt[3 * p + c];
+        for (size_t c = 0; c < 3; ++c) img.pixels[3 * p + c] = composited.pixels[3 * p + c] = 0;
       }
     }
     const double valid_fraction = 1.0 - double(missing) / (double(w) * double(h));
