@@ -492,6 +492,16 @@ Status Trainer::step(IterationStats* stats) {
     stats->views_released = released;
     stats->views_held_back = d.held_count();
     stats->psnr = metrics::psnr_f32(d.ws.rgb.data(), d.target.data(), cam.intr.width, cam.intr.height);
+    if (d.ws.valid_pixels) {  // over the pixels that have a source (io::DatasetView::valid)
+      double sse = 0;
+      size_t count = 0;
+      for (size_t p = 0; p < size_t(cam.intr.width) * size_t(cam.intr.height); ++p) {
+        if (!d.ws.valid_pixels[p]) continue;
+        for (size_t c = 0; c < 3; ++c) sse += double(d.ws.rgb[3 * p + c] - d.target[3 * p + c]) * double(d.ws.rgb[3 * p + c] - d.target[3 * p + c]);
+        count += 3;
+      }
+      stats->psnr = metrics::psnr_from_sse(sse, double(count));
+    }
     stats->anchors = d.model.anchor_count;
     stats->isects = d.renderer.stats().isects;
     stats->adjusted = adjusted;
