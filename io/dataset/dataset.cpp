@@ -76,11 +76,12 @@ Status plan_fisheye(const ColmapCamera& cam, const std::string& model, const std
   const double valid_angle = fisheye_valid_angle(cam);
   const std::string named = where + " (" + model + ")";
   if (!(valid_angle > kPi / 180))
-    return invalid_argument(named + ": the lens's radius does not grow with the angle from the axis even below 1 degree "
-                            "(distortion parameters " + (cam.model == "FOV" ? "omega must be below pi in size" : "not monotonic") + ")");
+    return invalid_argument(named + ": the lens's radius does not grow with the angle from the axis even below 1 degree (" +
+                            (cam.model == "FOV" ? "FOV's omega must be below pi in magnitude" : "the distortion polynomial falls from the start") + ")");
   const int w = cam.width, h = cam.height;
-  // The widest field of view whose corners stay within valid_angle (centred pinhole, square pixels).
-  const double half_diagonal_ratio = std::hypot(0.5 * w, 0.5 * h) / (0.5 * w);
+  // The widest field of view whose corner pixels' centres stay within valid_angle (centred pinhole,
+  // square pixels), as fisheye_fov_fits and the map judge them.
+  const double half_diagonal_ratio = std::max(1e-9, std::hypot(0.5 * w - 0.5, 0.5 * h - 0.5)) / (0.5 * w);
   const double widest = 2 * std::atan(std::tan(std::min(valid_angle, 0.5 * kPi - 1e-9)) / half_diagonal_ratio);
   double fov = options.fisheye_fov_deg * kPi / 180;
   if (fov > 0) {

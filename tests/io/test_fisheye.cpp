@@ -293,7 +293,14 @@ TEST_CASE("load_dataset: fisheye parameters that cannot describe the needed angl
   auto ds = load_dataset(dir.path());
   REQUIRE_MESSAGE(ds.ok(), ds.status().to_string());
   const double f = ds->views[0].camera.intr.fx;
+  const double automatic = 2 * std::atan(0.5 * W / f) * 180 / kPi;
   CHECK(std::atan(std::hypot(W / 2.0 - 0.5, H / 2.0 - 0.5) / f) * 180 / kPi <= 46.8);  // the corner pixels' centres
+  // The automatic value given explicitly is accepted (the same rule), 1 degree more is refused.
+  DatasetOptions same;
+  same.fisheye_fov_deg = automatic;
+  CHECK(load_dataset(dir.path(), same).ok());
+  same.fisheye_fov_deg = automatic + 1;
+  CHECK_FALSE(load_dataset(dir.path(), same).ok());
 
   TempDir fov;
   write_one(fov.path(), camera(5, "FOV", W, H, {30, 30, 32, 24, 3.5}), img);
