@@ -58,7 +58,7 @@ bool fisheye_fov_fits(const ColmapCamera& cam, double valid_angle, double fov) {
     const double ray[3] = {(u + 0.5 - cx) / f, (v + 0.5 - cy) / f, 1};
     if (std::atan(std::hypot(ray[0], ray[1])) > valid_angle) return false;
     double pu = 0, pv = 0;
-    return colmap_project(cam, ray, &pu, &pv) && inside(float(pu), float(pv), w, h);
+    return colmap_project(cam, ray, &pu, &pv) && std::fabs(pu) < 1e9 && std::fabs(pv) < 1e9 && inside(float(pu), float(pv), w, h);
   };
   for (int u = 0; u < w; ++u)
     if (!fits(u, 0) || !fits(u, h - 1)) return false;
@@ -118,7 +118,8 @@ Status plan_fisheye(const ColmapCamera& cam, const std::string& model, const std
       pinhole_ray(*c, u, v, ray);
       float* m = &c->map[(size_t(v) * size_t(w) + size_t(u)) * 2];
       m[0] = m[1] = std::numeric_limits<float>::quiet_NaN();
-      if (std::atan(std::hypot(ray[0], ray[1])) <= valid_angle && colmap_project(cam, ray, &pu, &pv))
+      if (std::atan(std::hypot(ray[0], ray[1])) <= valid_angle && colmap_project(cam, ray, &pu, &pv) &&
+          std::fabs(pu) < 1e9 && std::fabs(pv) < 1e9)  // (far outside: none; and float can hold it)
         m[0] = float(pu), m[1] = float(pv);
     }
   }
