@@ -295,7 +295,7 @@ Command add_synth_command(CLI::App& parent) {
                   "The dataset's lens: pinhole (PINHOLE, f = 0.9 width) or fisheye (a 180-degree equidistant fisheye, "
                   "OPENCV_FISHEYE with f = width / pi and k1..k4 = 0: 90 degrees from the axis at half the width from the "
                   "centre; corners outside that circle black). Same seed, same poses: the default synth is its pinhole "
-                  "twin (give the fisheye 4x the twin's width for the twin's detail, e.g. 1024x768 for 256x192)")
+                  "twin (give the fisheye 6x the twin's width for the twin's detail, e.g. 1536x1152 for 256x192)")
       ->capture_default_str()
       ->check(CLI::IsMember({"pinhole", "fisheye"}));
   sub->add_flag("--force", args->force,
