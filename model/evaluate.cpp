@@ -98,6 +98,8 @@ Expected<EvalResult> evaluate_with(const std::vector<const io::DatasetView*>& vi
                               std::to_string(h) + " RGB image");
     if (!v->mask.empty() && (v->mask.width != w || v->mask.height != h || v->mask.channels != 1))
       return invalid_argument("evaluation: view " + v->name + ": its mask is not one channel of the image's size");
+    if (!v->valid.empty() && (v->valid.width != w || v->valid.height != h || v->valid.channels != 1))
+      return invalid_argument("evaluation: view " + v->name + ": its valid-pixel map is not one channel of the image's size");
     max_w = std::max(max_w, w);
     max_h = std::max(max_h, h);
   }
@@ -136,13 +138,27 @@ Expected<EvalResult> evaluate_with(const std::vector<const io::DatasetView*>& vi
         for (size_t c = 0; c < 3; ++c) rgb[3 * p + c] = rgb[3 * p + c] * m + bg[c] * (1.0f - m);
       }
     }
-    const io::Image8 img = io::image_from_float_rgb(rgb.data(), w, h);  // clamps to [0, 1], rounds
-    const io::Image8 composited = io::composite_rgb8(v->image, v->mask, options.render.background);
+    io::Image8 img = io::image_from_float_rgb(rgb.data(), w, h);  // clamps to [0, 1], rounds
+    io::Image8 composited = io::composite_rgb8(v->image, v->mask, options.render.background);
     const uint8_t* gt = composited.pixels.data();
-    m.psnr = metrics::psnr_u8(img.pixels.data(), gt, w, h);
+    // Pixels without a source (DatasetView::valid) are 0 in both the render and the ground truth,
+    // so they add no error and what they held does not matter; the figures are over the valid
+    // pixels (see ViewMetrics).
+    size_t missing = 0;
+    if (!v->valid.empty()) {
+      for (size_t p = 0; p < size_t(w) * size_t(h); ++p) {
+        if (v->valid.pixels[p]) continue;
+        ++missing;
+        for (size_t c = 0; c < 3; ++c) img.pixels[3 * p + c] = composited.pixels[3 * p + c] = 0;
+      }
+    }
+    const double valid_fraction = 1.0 - double(missing) / (double(w) * double(h));
+    m.psnr = missing ? metrics::psnr_u8_masked(img.pixels.data(), gt, v->valid.pixels.data(), w, h)
+                     : metrics::psnr_u8(img.pixels.data(), gt, w, h);
     if (!v->mask.empty()) mask_metrics(img.pixels.data(), gt, v->mask.pixels.data(), alpha.data(), w, h, &m);
     if (full) {
       m.ssim = metrics::ssim_u8(img.pixels.data(), gt, w, h);
+      if (missing) m.ssim = valid_fraction > 0 ? 1 - (1 - m.ssim) / valid_fraction : 1.0;
       if (lpips) {
         Expected<double> d = lpips->distance(img.pixels.data(), gt, w, h);
         if (!d.ok()) return Status(d.status().code(), "evaluation: view " + v->name + ": " + d.status().message());

@@ -95,12 +95,6 @@ Pose compose(const Pose& rel, const Pose& base) {
   return p;
 }
 
-double centre_distance(const Pose& a, const Pose& b) {
-  double ca[3], cb[3];
-  centre(a, ca);
-  centre(b, cb);
-  return std::sqrt((ca[0] - cb[0]) * (ca[0] - cb[0]) + (ca[1] - cb[1]) * (ca[1] - cb[1]) + (ca[2] - cb[2]) * (ca[2] - cb[2]));
-}
 
 // v (RGB) -> (sqrt(3) Y, w (B - Y), w (R - Y)) in place (see Impl::evaluate).
 inline void to_luma_chroma(float v[3], float w) {

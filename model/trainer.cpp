@@ -298,18 +298,32 @@ Status Trainer::Impl::register_held(int it, int* released) {
       pose::RegisterResult r;
       GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, starts[i], &r));
       if (r.converged() && (!found || r.final_rmse < best.final_rmse)) best = r, found = true;
+      // Its own pose confirmed: the model places the view where it was given (a correct view the
+      // points doubted, e.g. behind an occluder without SfM points). It rejoins at the given pose,
+      // which is more precise than a registration against a model this young (snowmiku_plush:
+      // adopting those registrations cost 0.5 dB), and no other start is needed.
+      if (i == 0 && found && pose::rotation_error_deg(best.pose, starts[0]) <= kConfirmDeg &&
+          pose::centre_distance(best.pose, starts[0]) <= kConfirmExtent * model.scene_extent)
+        break;
     }
     if (!found) continue;
-    adopt_pose(v, best.pose);
     held[v] = 0;
-    repaired[v] = 1;
     ++*released;
+    if (pose::rotation_error_deg(best.pose, starts[0]) <= kConfirmDeg &&
+        pose::centre_distance(best.pose, starts[0]) <= kConfirmExtent * model.scene_extent)
+      continue;
+    adopt_pose(v, best.pose);
+    repaired[v] = 1;
   }
   return Status::Ok();
 }
 
 void Trainer::Impl::load_target(const io::DatasetView& v, int s, const float bg[3]) {
   io::composite_target(v.image, v.mask, s, bg, target.data(), pool);
+  ws.valid_pixels = nullptr;
+  if (v.valid.empty()) return;
+  io::valid_target(v.valid, s, valid_target.data());
+  ws.valid_pixels = valid_target.data();
 }
 
 int Trainer::Impl::coarse_level(int it, double end) const {
@@ -414,6 +428,8 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
                               std::to_string(v.camera.intr.height) + " RGB");
     if (!v.mask.empty() && (v.mask.channels != 1 || v.mask.width != v.image.width || v.mask.height != v.image.height))
       return invalid_argument("trainer: view '" + v.name + "' has a mask that is not one channel of its image's size");
+    if (!v.valid.empty() && (v.valid.channels != 1 || v.valid.width != v.image.width || v.valid.height != v.image.height))
+      return invalid_argument("trainer: view '" + v.name + "' has a valid-pixel map that is not one channel of its image's size");
     d.view_cameras.push_back(v.camera);
     d.composited.push_back(v.mask.empty() ? io::Image8{} : io::composite_rgb8(v.image, v.mask, options.background.rgb));
     max_w = std::max(max_w, v.camera.intr.width);
@@ -428,6 +444,7 @@ Expected<std::unique_ptr<Trainer>> Trainer::create(HybridModel model, const std:
   d.plan_w = max_w;
   d.plan_h = max_h;
   d.target.assign(size_t(max_w) * size_t(max_h) * 3, 0.0f);
+  d.valid_target.assign(size_t(max_w) * size_t(max_h), 0);
   d.build_groups();
   d.rng.state = options.seed * 0x9E3779B97F4A7C15ull + 7;
   d.view_order.assign(train_views.size(), 0);
@@ -559,6 +576,16 @@ Status Trainer::step(IterationStats* stats) {
     stats->views_released = released;
     stats->views_held_back = d.held_count();
     stats->psnr = metrics::psnr_f32(d.ws.rgb.data(), d.target.data(), cam.intr.width, cam.intr.height);
+    if (d.ws.valid_pixels) {  // over the pixels that have a source (io::DatasetView::valid)
+      double sse = 0;
+      size_t count = 0;
+      for (size_t p = 0; p < size_t(cam.intr.width) * size_t(cam.intr.height); ++p) {
+        if (!d.ws.valid_pixels[p]) continue;
+        for (size_t c = 0; c < 3; ++c) sse += double(d.ws.rgb[3 * p + c] - d.target[3 * p + c]) * double(d.ws.rgb[3 * p + c] - d.target[3 * p + c]);
+        count += 3;
+      }
+      stats->psnr = metrics::psnr_from_sse(sse, double(count));
+    }
     stats->anchors = d.model.anchor_count;
     stats->isects = d.renderer.stats().isects;
     stats->adjusted = adjusted;
@@ -634,6 +661,7 @@ void Trainer::set_stage_times(StageTimes* times) { impl_->stage_times = times; }
 int Trainer::iteration() const { return impl_->iteration; }
 const std::vector<Camera>& Trainer::cameras() const { return impl_->view_cameras; }
 const std::vector<uint8_t>& Trainer::held_back() const { return impl_->held; }
+const std::vector<uint8_t>& Trainer::repaired() const { return impl_->repaired; }
 int Trainer::downscale_at(int iteration) const { return impl_->downscale_at(iteration); }
 const HybridModel& Trainer::model() const { return impl_->model; }
 const TrainOptions& Trainer::options() const { return impl_->opt; }

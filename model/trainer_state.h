@@ -62,6 +62,7 @@ struct Trainer::Impl {
   detail::FloatBackend backend;
   StepWorkspace<float> ws;
   std::vector<float> target;  // [H, W, 3] of the current view
+  std::vector<uint8_t> valid_target;  // [H, W] its valid pixels (views with io::DatasetView::valid)
   std::vector<detail::ParamGroup> groups;  // offsets, log_scales, features, then the MLPs
   int iteration = 0;
   detail::SplitMix64 rng;
@@ -140,14 +141,19 @@ struct Trainer::Impl {
   // (Adam state reset) and joins training. Returns how many joined. Several starts per view: its
   // own pose, the poses of the trained views next to it in capture order (by name) and of those
   // whose photos look most like it (descriptors); the converged result with the lowest residual wins.
-  // Views released by an earlier pass are registered again from their pose (the model is better
+  // A view the registration from its own pose confirms (kConfirmDeg) rejoins at its given pose.
+  // Views repaired (moved) by an earlier pass are registered again from their pose (the model is better
   // now) and keep the result when it converges to a lower residual.
   Status register_held(int it, int* released);
   // Up to kHeldStarts start poses for held view v (see register_held); returns how many.
   static constexpr int kHeldStarts = 5;
+  // A held view whose registration from its own pose converges within these of it is confirmed
+  // at that pose (degrees; fraction of the scene extent): it rejoins unchanged.
+  static constexpr double kConfirmDeg = 1.0, kConfirmExtent = 0.01;
   int held_starts(size_t v, Pose* starts) const;
   void describe_photos();  // fills descriptors
-  // Target at resolution divisor s (s x s block means, matching scaled_camera), composited on bg.
+  // Target at resolution divisor s (s x s block means, matching scaled_camera), composited on bg;
+  // a view with missing pixels (DatasetView::valid) sets ws.valid_pixels for the step (else null).
   void load_target(const io::DatasetView& v, int s, const float bg[3]);
   // Coarse-to-fine level (0 = coarsest) of iteration it when the coarse phase ends at `end`.
   int coarse_level(int it, double end) const;

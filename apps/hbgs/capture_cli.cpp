@@ -3,6 +3,8 @@
 #include "capture_cli.h"
 
 #include <cstdio>
+#include <iterator>
+#include <vector>
 
 #include "common.h"
 
@@ -27,6 +29,13 @@ void add_ingest_options(CLI::App* sub, std::string* out_dir, gs::capture::Ingest
             return m.ok() ? std::string() : m.status().message();
           },
           "MATCHER"));
+  std::vector<std::string> models(std::begin(gs::capture::kColmapCameraModels), std::end(gs::capture::kColmapCameraModels));
+  sub->add_option("--camera-model", o->colmap.camera_model,
+                  "COLMAP camera model of the one shared camera; the fisheye ones (OPENCV_FISHEYE, RADIAL_FISHEYE, "
+                  "SIMPLE_RADIAL_FISHEYE, FOV) are kept distorted and undistorted by hbgs on load (hbgs train --fisheye-fov), "
+                  "the others are undistorted to PINHOLE by COLMAP")
+      ->capture_default_str()
+      ->check(CLI::IsMember(models));
   sub->add_option("--colmap", o->colmap.colmap, "COLMAP program (name on PATH or path)")->capture_default_str();
   sub->add_option("--max-width", o->max_width, "Downscale kept frames wider than this (0: keep)")
       ->capture_default_str()

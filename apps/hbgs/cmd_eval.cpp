@@ -45,6 +45,9 @@ Command add_eval_command(CLI::App& parent) {
   sub->add_option("--out", o->out, "Folder for results.json and per_view.json (default: <run>/eval)");
   sub->add_option("--max-width", o->max_width, "Downscale views to at most this width (default: as trained)")
       ->check(CLI::Range(0, gs::io::kMaxImageSide));
+  sub->add_option("--fisheye-fov", o->fisheye_fov,
+                  "Fisheye cameras' pinhole field of view, degrees (default: as trained; 0: automatic, see hbgs train)")
+      ->check(CLI::Range(0.0, 170.0));
   sub->add_option("--split", o->split, "Views to evaluate")->capture_default_str()->check(CLI::IsMember({"test", "train", "all"}));
   sub->add_option("--method", o->method, "Method key in the JSON files")->capture_default_str();
   sub->add_option("--lpips-weights", o->lpips_weights, "LPIPS-Alex weights folder (default: ../shared/data/lpips_alex if present)");

@@ -43,6 +43,7 @@ struct SynthArgs {
   int views = 48;
   std::string object_background = "transparent";
   bool size_given = false, points_given = false;
+  std::string camera = "pinhole";  // the dataset's lens: pinhole or fisheye
 };
 
 #ifdef HBGS_HAVE_SYNTH
@@ -191,6 +192,8 @@ int run_synth(const SynthArgs& a) {
   if (a.trajectory && a.object_background != "transparent")
     return fail("synth", "--trajectory --object renders the subject alone on --background; --object-background " +
                              a.object_background + " is not supported");
+  if (a.camera != "pinhole" && (a.trajectory || a.object || a.path_frames > 0))
+    return fail("synth", "--camera " + a.camera + " applies to the built-in scene's dataset only (not --object, --trajectory or --path-frames)");
   if (a.trajectory) return run_synth_trajectory(a);
   if (a.object) return run_synth_object(a);
   if (a.path_frames > 0) return run_synth_path(a);
@@ -204,6 +207,7 @@ int run_synth(const SynthArgs& a) {
   o.num_points = a.points;
   o.threads = a.threads;
   o.verbose = !a.quiet;
+  if (a.camera == "fisheye") o.camera = hbgs::synth::SynthOptions::Camera::kFisheye;
   gs::Expected<hbgs::synth::SynthSummary> summary = hbgs::synth::generate_scene(o, a.out);
   if (!summary.ok()) return fail("synth", summary.status().to_string());
 
@@ -211,6 +215,9 @@ int run_synth(const SynthArgs& a) {
   std::printf("hbgs synth: %d views (%d arc + %d orbit) of %dx%d, %d sparse points, seed %llu, %.2f s\n",
               summary->num_views, a.views_arc, a.views_orbit, a.width, a.height, summary->num_points,
               static_cast<unsigned long long>(a.seed), summary->seconds);
+  if (o.camera == hbgs::synth::SynthOptions::Camera::kFisheye)
+    std::printf("  camera: 180-degree equidistant fisheye (OPENCV_FISHEYE, f = %.4f, k1..k4 = 0)\n",
+                hbgs::synth::fisheye_focal(a.width));
   std::printf("  images: %s\n  model:  %s\n", (root / "images").string().c_str(),
               (root / "sparse" / "0").string().c_str());
   return kExitOk;
@@ -284,6 +291,13 @@ Command add_synth_command(CLI::App& parent) {
                   "on a textured, cluttered background; masks/ mark the object)")
       ->capture_default_str()
       ->check(CLI::IsMember({"transparent", "cluttered"}));
+  sub->add_option("--camera", args->camera,
+                  "The dataset's lens: pinhole (PINHOLE, f = 0.9 width) or fisheye (a 180-degree equidistant fisheye, "
+                  "OPENCV_FISHEYE with f = width / pi and k1..k4 = 0: 90 degrees from the axis at half the width from the "
+                  "centre; corners outside that circle black). Same seed, same poses: the default synth is its pinhole "
+                  "twin (give the fisheye 6x the twin's width for the twin's detail, e.g. 1536x1152 for 256x192)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"pinhole", "fisheye"}));
   sub->add_flag("--force", args->force,
                 "Overwrite an existing dataset in --out (with --object, its images/, masks/ and transforms files are "
                 "removed first)");

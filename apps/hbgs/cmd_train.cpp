@@ -202,6 +202,11 @@ Command add_train_command(CLI::App& parent) {
   sub->add_option("--max-width", o->max_width, "Downscale views to at most this width (0: full size)")
       ->capture_default_str()
       ->check(CLI::Range(0, gs::io::kMaxImageSide));
+  sub->add_option("--fisheye-fov", o->fisheye_fov,
+                  "Fisheye cameras (OPENCV_FISHEYE, RADIAL_FISHEYE, SIMPLE_RADIAL_FISHEYE, FOV) are undistorted to a pinhole "
+                  "of this horizontal field of view, degrees (0: the widest up to 120 whose every pixel lies inside the image)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 170.0));
   sub->add_option("--checkpoint-every", o->checkpoint_every, "Write checkpoint.bin every N iterations (0: only at the end)")
       ->capture_default_str()
       ->check(CLI::Range(0, 100000000));

@@ -171,6 +171,32 @@ Status run_colmap_reconstruction(const std::string& frames_dir, const std::strin
   return Status::Ok();
 }
 
+bool is_fisheye_model_name(const std::string& model) { return io::is_fisheye_model(model); }
+
+namespace {
+
+// A fisheye reconstruction as the dataset: COLMAP's model (binary) and its registered frames as
+// they are. COLMAP's image_undistorter would pick the pinhole's field of view from the image's
+// border, which for a lens of 180 degrees or more lies at or beyond 90 degrees from the axis.
+Status write_distorted_dataset(const std::string& frames_dir, const std::string& model_dir, const std::string& dataset_dir) {
+  Expected<io::ColmapModel> model = io::read_colmap_binary(model_dir);
+  if (!model.ok()) return model.status();
+  GS_RETURN_IF_ERROR(platform::make_dirs(dataset_dir + "/images"));
+  GS_RETURN_IF_ERROR(platform::make_dirs(dataset_dir + "/sparse/0"));
+  std::error_code ec;
+  for (const io::ColmapImage& im : model->images) {
+    fs::copy_file(frames_dir + "/" + im.name, dataset_dir + "/images/" + im.name, fs::copy_options::overwrite_existing, ec);
+    if (ec) return io_error("cannot copy " + frames_dir + "/" + im.name + " into the dataset: " + ec.message());
+  }
+  for (const char* f : {"cameras.bin", "images.bin", "points3D.bin"}) {
+    fs::copy_file(model_dir + "/" + f, dataset_dir + "/sparse/0/" + f, fs::copy_options::overwrite_existing, ec);
+    if (ec) return io_error("cannot copy " + model_dir + "/" + f + " into the dataset: " + ec.message());
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
 Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir, const std::string& dataset_dir,
                       const std::string& log_path, const ColmapOptions& o, const ProgressFn& progress,
                       ColmapReport* report) {
@@ -181,6 +207,12 @@ Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir
   const std::string colmap = platform::find_program(o.colmap);
   std::error_code ec;
 
+  if (is_fisheye_model_name(o.camera_model)) {
+    if (progress)
+      progress("[4/4] writing " + std::to_string(rep.registered) + " registered " + o.camera_model +
+               " frames as they are (hbgs undistorts them on load)");
+    return write_distorted_dataset(frames_dir, best_model, dataset_dir);
+  }
   if (progress)
     progress("[4/4] undistorting " + std::to_string(rep.registered) + " registered frames to PINHOLE");
   const std::string undist = work_dir + "/undistorted";

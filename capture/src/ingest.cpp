@@ -73,7 +73,9 @@ nlohmann::json report_json(const IngestReport& r, const IngestOptions& o) {
                  {"target", o.select.target_count}, {"blur_ratio", o.select.blur_ratio},
                  {"total_motion", r.select.total_motion}, {"kept_frame_numbers", r.kept_frames}};
   j["size"] = {{"decoded", {r.width, r.height}}, {"written", {r.out_width, r.out_height}}};
-  j["colmap"] = {{"images", r.colmap.images},
+  j["colmap"] = {{"camera_model", o.colmap.camera_model},
+                 {"undistorted_by", is_fisheye_model_name(o.colmap.camera_model) ? "hbgs" : "colmap"},
+                 {"images", r.colmap.images},
                  {"registered", r.colmap.registered},
                  {"reconstructions", r.colmap.models},
                  {"points", r.colmap.points},

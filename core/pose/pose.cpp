@@ -270,6 +270,13 @@ void left_difference(const Pose& from, const Pose& to, double xi[6]) {
   se3_log(Rd, td, xi);
 }
 
+double centre_distance(const Pose& a, const Pose& b) {
+  double ca[3], cb[3];
+  centre(a, ca);
+  centre(b, cb);
+  return std::sqrt((ca[0] - cb[0]) * (ca[0] - cb[0]) + (ca[1] - cb[1]) * (ca[1] - cb[1]) + (ca[2] - cb[2]) * (ca[2] - cb[2]));
+}
+
 double rotation_error_deg(const Pose& a, const Pose& b) {
   double Ra[9], Rb[9], t[3];
   to_double(a, Ra, t);

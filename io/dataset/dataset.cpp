@@ -3,11 +3,13 @@
 // -> pinhole views with decoded RGB images, subject masks (alpha or mask files) and points; and
 // read_dataset_files, the same views as their files describe them (for writers of posed models).
 // Both layouts become one list of views to load, so undistortion (SIMPLE_RADIAL, RADIAL, OPENCV
-// into a PINHOLE camera with the same fx, fy, cx, cy), masks, downscaling and the split are done by
-// one implementation and the renderer only ever sees pinholes.
+// into a PINHOLE camera with the same fx, fy, cx, cy; the fisheye models into a PINHOLE camera of a
+// chosen field of view; pixels without a source marked invalid), masks, downscaling and the split
+// are done by one implementation and the renderer only ever sees pinholes.
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <set>
 #include <system_error>
@@ -24,56 +26,167 @@
 namespace gs::io {
 namespace {
 
-// A camera reduced to pinhole intrinsics plus COLMAP's OpenCV-style distortion terms
-// (SIMPLE_RADIAL: k1; RADIAL: k1, k2; OPENCV: k1, k2, p1, p2). All-zero terms: no resampling.
+constexpr double kPi = 3.14159265358979323846;
+double degrees(double radians) { return radians * 180 / kPi; }
+
+// How a camera becomes a pinhole view: its stored camera in DatasetFileView's form, the pinhole it
+// is loaded as, and (when they differ) each output pixel's position in the stored image.
 struct CameraPlan {
-  double fx = 0, fy = 0, cx = 0, cy = 0;
-  double k1 = 0, k2 = 0, p1 = 0, p2 = 0;
-  int width = 0, height = 0;
-  std::vector<float> map;  // [H, W, 2] source pixel position (continuous, pixel centres at +0.5) per output pixel
-  bool distorted() const { return k1 != 0 || k2 != 0 || p1 != 0 || p2 != 0; }
+  ColmapCamera stored;             // PINHOLE, OPENCV, OPENCV_FISHEYE or FOV (DatasetFileView::camera)
+  double fx = 0, fy = 0, cx = 0, cy = 0;  // the pinhole the view is loaded as
+  int width = 0, height = 0;       // both images' size
+  std::vector<float> map;  // [H, W, 2] source pixel position (continuous, pixel centres at +0.5) per output pixel; NaN: none
+  Image8 valid;            // 1 channel, 255 where the map has a source pixel; empty when every pixel has
+  bool distorted() const { return !map.empty(); }
 };
 
-// `where` names the camera in errors ("<sparse dir>: camera 3", "<json>: frame 2").
-Status make_plan(const ColmapCamera& cam, const std::string& where, CameraPlan* plan) {
+// Whether a source position lies in the source image (undistort samples it).
+bool inside(float px, float py, int w, int h) { return px >= 0 && px <= float(w) && py >= 0 && py <= float(h); }
+
+// The output pixel (u, v)'s camera-space ray through the plan's pinhole.
+void pinhole_ray(const CameraPlan& c, int u, int v, double ray[3]) {
+  ray[0] = (u + 0.5 - c.cx) / c.fx, ray[1] = (v + 0.5 - c.cy) / c.fy, ray[2] = 1;
+}
+
+// Whether every pixel of a w x h pinhole of horizontal field of view fov (radians, centred) has a
+// source pixel in the fisheye camera: within its valid angle and inside its image. The border
+// pixels decide (the radius grows with the angle, so the border's image encloses the rest).
+bool fisheye_fov_fits(const ColmapCamera& cam, double valid_angle, double fov) {
+  const int w = cam.width, h = cam.height;
+  const double f = 0.5 * w / std::tan(0.5 * fov), cx = 0.5 * w, cy = 0.5 * h;
+  auto fits = [&](int u, int v) {
+    const double ray[3] = {(u + 0.5 - cx) / f, (v + 0.5 - cy) / f, 1};
+    if (std::atan(std::hypot(ray[0], ray[1])) > valid_angle) return false;
+    double pu = 0, pv = 0;
+    return colmap_project(cam, ray, &pu, &pv) && std::fabs(pu) < 1e9 && std::fabs(pv) < 1e9 && inside(float(pu), float(pv), w, h);
+  };
+  for (int u = 0; u < w; ++u)
+    if (!fits(u, 0) || !fits(u, h - 1)) return false;
+  for (int v = 0; v < h; ++v)
+    if (!fits(0, v) || !fits(w - 1, v)) return false;
+  return true;
+}
+
+// The fisheye camera's pinhole: options.fisheye_fov_deg, or the widest fitting one up to
+// kDefaultFisheyeFovDeg (to 0.01 degree, rounded down). Refuses a lens whose radius stops growing
+// within the angles the pinhole needs.
+// `model`: the camera's model as stored (cam is in DatasetFileView's form).
+Status plan_fisheye(const ColmapCamera& cam, const std::string& model, const std::string& where, const DatasetOptions& options,
+                    CameraPlan* c) {
+  const double valid_angle = fisheye_valid_angle(cam);
+  const std::string named = where + " (" + model + ")";
+  if (!(valid_angle > kPi / 180))
+    return invalid_argument(named + ": the lens's radius does not grow with the angle from the axis even below 1 degree (" +
+                            (cam.model == "FOV" ? "FOV's omega must be below pi in magnitude" : "the distortion polynomial falls from the start") + ")");
+  const int w = cam.width, h = cam.height;
+  // The widest field of view whose corner pixels' centres stay within valid_angle (centred pinhole,
+  // square pixels), as fisheye_fov_fits and the map judge them.
+  const double half_diagonal_ratio = std::max(1e-9, std::hypot(0.5 * w - 0.5, 0.5 * h - 0.5)) / (0.5 * w);
+  const double widest = 2 * std::atan(std::tan(std::min(valid_angle, 0.5 * kPi - 1e-9)) / half_diagonal_ratio);
+  double fov = options.fisheye_fov_deg * kPi / 180;
+  if (fov > 0) {
+    if (fov > widest + 1e-12) {
+      const double corner = std::atan(std::tan(0.5 * fov) * half_diagonal_ratio);
+      return invalid_argument(named + ": the lens's radius stops growing " + std::to_string(degrees(valid_angle)) +
+                              " degrees from the axis, but a pinhole of " + std::to_string(options.fisheye_fov_deg) +
+                              " degrees needs rays up to " + std::to_string(degrees(corner)) +
+                              " degrees; pass a fisheye field of view of at most " +
+                              std::to_string(std::floor(degrees(widest) * 100) / 100) + " degrees");
+    }
+  } else {
+    const double cap = kDefaultFisheyeFovDeg * kPi / 180;
+    if (fisheye_fov_fits(cam, valid_angle, cap)) {
+      fov = cap;
+    } else {
+      double lo = 0, hi = cap;
+      for (int i = 0; i < 40; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (fisheye_fov_fits(cam, valid_angle, mid) ? lo : hi) = mid;
+      }
+      fov = std::floor(degrees(lo) * 100) / 100 * kPi / 180;
+      if (!(fov >= kPi / 180))
+        return invalid_argument(named + ": no pinhole of 1 degree or more fits inside the image (is the principal point "
+                                "inside it?); pass a fisheye field of view");
+    }
+  }
+  c->fx = c->fy = 0.5 * w / std::tan(0.5 * fov);
+  c->cx = 0.5 * w, c->cy = 0.5 * h;
+  c->map.resize(size_t(w) * size_t(h) * 2);
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      double ray[3], pu = 0, pv = 0;
+      pinhole_ray(*c, u, v, ray);
+      float* m = &c->map[(size_t(v) * size_t(w) + size_t(u)) * 2];
+      m[0] = m[1] = std::numeric_limits<float>::quiet_NaN();
+      if (std::atan(std::hypot(ray[0], ray[1])) <= valid_angle && colmap_project(cam, ray, &pu, &pv) &&
+          std::fabs(pu) < 1e9 && std::fabs(pv) < 1e9)  // (far outside: none; and float can hold it)
+        m[0] = float(pu), m[1] = float(pv);
+    }
+  }
+  return Status::Ok();
+}
+
+// `where` names the camera in errors ("<sparse dir>/cameras.txt: camera 3", "<json>: frame 2").
+Status make_plan(const ColmapCamera& cam, const std::string& where, const DatasetOptions& options, CameraPlan* plan) {
   const std::vector<double>& p = cam.params;
   CameraPlan c;
   c.width = cam.width, c.height = cam.height;
+  c.stored.id = cam.id, c.stored.width = cam.width, c.stored.height = cam.height;
   if (cam.model == "PINHOLE") {
-    c.fx = p[0], c.fy = p[1], c.cx = p[2], c.cy = p[3];
+    c.stored.params = {p[0], p[1], p[2], p[3]};
   } else if (cam.model == "SIMPLE_PINHOLE") {
-    c.fx = c.fy = p[0], c.cx = p[1], c.cy = p[2];
+    c.stored.params = {p[0], p[0], p[1], p[2]};
   } else if (cam.model == "SIMPLE_RADIAL") {
-    c.fx = c.fy = p[0], c.cx = p[1], c.cy = p[2], c.k1 = p[3];
+    c.stored.params = {p[0], p[0], p[1], p[2], p[3], 0, 0, 0};
   } else if (cam.model == "RADIAL") {
-    c.fx = c.fy = p[0], c.cx = p[1], c.cy = p[2], c.k1 = p[3], c.k2 = p[4];
-  } else if (cam.model == "OPENCV") {
-    c.fx = p[0], c.fy = p[1], c.cx = p[2], c.cy = p[3], c.k1 = p[4], c.k2 = p[5], c.p1 = p[6], c.p2 = p[7];
+    c.stored.params = {p[0], p[0], p[1], p[2], p[3], p[4], 0, 0};
+  } else if (cam.model == "OPENCV" || cam.model == "OPENCV_FISHEYE" || cam.model == "FOV") {
+    c.stored.params = p;
+  } else if (cam.model == "RADIAL_FISHEYE") {
+    c.stored.params = {p[0], p[0], p[1], p[2], p[3], p[4], 0, 0};
+  } else if (cam.model == "SIMPLE_RADIAL_FISHEYE") {
+    c.stored.params = {p[0], p[0], p[1], p[2], p[3], 0, 0, 0};
   } else {
     return unsupported(where + " uses model " + cam.model +
-                       ", which hbgs cannot load (supported: PINHOLE, SIMPLE_PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV)");
+                       ", which hbgs cannot load (supported: PINHOLE, SIMPLE_PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, "
+                       "OPENCV_FISHEYE, RADIAL_FISHEYE, SIMPLE_RADIAL_FISHEYE, FOV)");
   }
-  if (c.distorted()) {
-    c.map.resize(size_t(c.width) * size_t(c.height) * 2);
-    for (int v = 0; v < c.height; ++v) {
-      for (int u = 0; u < c.width; ++u) {
-        // Same polynomial as COLMAP's OpenCVCameraModel::Distortion (zero terms for the simpler models).
-        const double x = (u + 0.5 - c.cx) / c.fx, y = (v + 0.5 - c.cy) / c.fy;
-        const double r2 = x * x + y * y, radial = c.k1 * r2 + c.k2 * r2 * r2;
-        const double xd = x + x * radial + 2 * c.p1 * x * y + c.p2 * (r2 + 2 * x * x);
-        const double yd = y + y * radial + 2 * c.p2 * x * y + c.p1 * (r2 + 2 * y * y);
-        float* m = &c.map[(size_t(v) * size_t(c.width) + size_t(u)) * 2];
-        m[0] = float(c.fx * xd + c.cx);
-        m[1] = float(c.fy * yd + c.cy);
+  const std::vector<double>& q = c.stored.params;
+  const bool fisheye = is_fisheye_model(cam.model);
+  c.stored.model = fisheye ? (cam.model == "FOV" ? "FOV" : "OPENCV_FISHEYE")
+                           : (q.size() == 8 && (q[4] != 0 || q[5] != 0 || q[6] != 0 || q[7] != 0)) ? "OPENCV" : "PINHOLE";
+  if (c.stored.model == "PINHOLE") c.stored.params.resize(4);
+  if (fisheye) {
+    GS_RETURN_IF_ERROR(plan_fisheye(c.stored, cam.model, where, options, &c));
+  } else {
+    c.fx = q[0], c.fy = q[1], c.cx = q[2], c.cy = q[3];
+    if (c.stored.model == "OPENCV") {  // colmap_project's OpenCV polynomial at each pixel's pinhole ray
+      c.map.resize(size_t(c.width) * size_t(c.height) * 2);
+      for (int v = 0; v < c.height; ++v) {
+        for (int u = 0; u < c.width; ++u) {
+          double ray[3], pu = 0, pv = 0;
+          pinhole_ray(c, u, v, ray);
+          colmap_project(c.stored, ray, &pu, &pv);
+          float* m = &c.map[(size_t(v) * size_t(c.width) + size_t(u)) * 2];
+          m[0] = float(pu), m[1] = float(pv);
+        }
       }
     }
+  }
+  if (c.distorted()) {  // which pixels have a source pixel (kept only when some have none)
+    const size_t n = size_t(c.width) * size_t(c.height);
+    c.valid = {c.width, c.height, 1, std::vector<uint8_t>(n, 255)};
+    bool all = true;
+    for (size_t i = 0; i < n; ++i)
+      if (!inside(c.map[2 * i], c.map[2 * i + 1], c.width, c.height)) c.valid.pixels[i] = 0, all = false;
+    if (all) c.valid = Image8{};
   }
   *plan = std::move(c);
   return Status::Ok();
 }
 
 // Bilinear resampling (gs/bilinear.h, in float) through the plan's map, any channel count (images
-// and masks take the same path); positions outside the source rectangle are 0 (black, background).
+// and masks take the same path); positions outside the source rectangle (or without one) are 0.
 Image8 undistort(const Image8& src, const CameraPlan& plan) {
   Image8 dst;
   dst.width = src.width, dst.height = src.height, dst.channels = src.channels;
@@ -81,7 +194,7 @@ Image8 undistort(const Image8& src, const CameraPlan& plan) {
   const int w = src.width, h = src.height, ch = src.channels;
   for (size_t i = 0; i < size_t(w) * size_t(h); ++i) {
     const float px = plan.map[2 * i], py = plan.map[2 * i + 1];
-    if (!(px >= 0 && px <= float(w) && py >= 0 && py <= float(h))) continue;
+    if (!inside(px, py, w, h)) continue;
     const BilinearCell<float> q = bilinear_cell(px - 0.5f, py - 0.5f, w, h);
     const uint8_t* r0 = &src.pixels[size_t(q.y0) * size_t(w) * size_t(ch)];
     const uint8_t* r1 = &src.pixels[size_t(q.y1) * size_t(w) * size_t(ch)];
@@ -128,12 +241,16 @@ Expected<Source> colmap_source(const std::string& root, const DatasetOptions& op
   Source src;
   src.layout = DatasetLayout::kColmap;
   std::map<uint32_t, size_t> plan_of_camera;  // only the cameras some image uses
+  // The file the cameras were read from (read_colmap_model takes the .bin set when it is complete).
+  bool binary = true;
+  for (const char* f : {"cameras.bin", "images.bin", "points3D.bin"}) binary = binary && platform::file_exists(detail::join_path(sparse_dir, f));
+  const std::string cameras_file = detail::join_path(sparse_dir, binary ? "cameras.bin" : "cameras.txt");
   for (const ColmapImage& im : model->images) {
     if (plan_of_camera.count(im.camera_id)) continue;
     const auto cam = std::find_if(model->cameras.begin(), model->cameras.end(),
                                   [&](const ColmapCamera& c) { return c.id == im.camera_id; });
     CameraPlan plan;  // the camera exists: read_colmap_* checked the links
-    GS_RETURN_IF_ERROR(make_plan(*cam, sparse_dir + ": camera " + std::to_string(cam->id), &plan));
+    GS_RETURN_IF_ERROR(make_plan(*cam, cameras_file + ": camera " + std::to_string(cam->id), options, &plan));
     plan_of_camera[im.camera_id] = src.plans.size();
     src.plans.push_back(std::move(plan));
   }
@@ -236,7 +353,8 @@ Status split_indices(const std::vector<std::string>& list, const char* key, cons
   return Status::Ok();
 }
 
-Expected<Source> transforms_source(const std::string& folder, const std::vector<TransformsInput>& inputs) {
+Expected<Source> transforms_source(const std::string& folder, const std::vector<TransformsInput>& inputs,
+                                   const DatasetOptions& options) {
   Source src;
   src.layout = DatasetLayout::kTransforms;
   std::map<std::vector<double>, size_t> plan_of_camera;  // (w, h, model params) -> plan
@@ -294,7 +412,7 @@ Expected<Source> transforms_source(const std::string& folder, const std::vector<
       auto [plan_it, new_camera] = plan_of_camera.emplace(key, src.plans.size());
       if (new_camera) {
         CameraPlan plan;
-        GS_RETURN_IF_ERROR(make_plan(cam, input.path + ": frame " + std::to_string(i), &plan));
+        GS_RETURN_IF_ERROR(make_plan(cam, input.path + ": frame " + std::to_string(i), options, &plan));
         src.plans.push_back(std::move(plan));
       }
       v.plan = plan_it->second;
@@ -491,15 +609,22 @@ Status load_pixels(const ViewSpec& spec, const CameraPlan& plan, const std::stri
     rgb = undistort(rgb, plan);
     if (!mask.empty()) mask = undistort(mask, plan);
   }
+  Image8 valid = plan.valid;
   const int W = view->camera.intr.width, H = view->camera.intr.height;
   if (W != plan.width || H != plan.height) {
-    const bool has_mask = !mask.empty();
+    const bool has_mask = !mask.empty(), has_valid = !valid.empty();
     rgb = resize_area(rgb, W, H);
     if (has_mask) mask = resize_area(mask, W, H);
-    if (rgb.empty() || (has_mask && mask.empty())) return Status(StatusCode::kInternal, path + ": downscaling failed");
+    if (has_valid) {  // valid where the area mean rounds to 255 (over 99.8 % of the pixel's area has a source)
+      valid = resize_area(valid, W, H);
+      for (uint8_t& v : valid.pixels) v = v == 255 ? 255 : 0;
+    }
+    if (rgb.empty() || (has_mask && mask.empty()) || (has_valid && valid.empty()))
+      return Status(StatusCode::kInternal, path + ": downscaling failed");
   }
   view->image = std::move(rgb);
   view->mask = std::move(mask);
+  view->valid = std::move(valid);
   return Status::Ok();
 }
 
@@ -594,6 +719,9 @@ Expected<Located> locate(const std::string& root, const DatasetOptions& options,
   if (options.max_width < 0) return invalid_argument("load_dataset: max_width must be >= 0");
   if (options.llffhold < 0) return invalid_argument("load_dataset: llffhold must be >= 0");
   if (options.random_points < 0) return invalid_argument("load_dataset: random_points must be >= 0");
+  if (!(options.fisheye_fov_deg == 0 || (options.fisheye_fov_deg >= 1 && options.fisheye_fov_deg <= 170)))
+    return invalid_argument("load_dataset: the fisheye field of view must be 0 (automatic) or 1-170 degrees, got " +
+                            std::to_string(options.fisheye_fov_deg));
 
   // A .json file: that transforms file (a NeRF synthetic split file: the pair beside it).
   if (ends_with(root, ".json") && platform::file_exists(root) && !platform::is_directory(root)) {
@@ -605,7 +733,7 @@ Expected<Located> locate(const std::string& root, const DatasetOptions& options,
       inputs = transforms_inputs(folder);
       if (inputs.empty()) return io_error(detail::join_path(folder, "transforms_train.json") + ": not found (beside " + root + ")");
     }
-    auto src = transforms_source(folder, inputs);
+    auto src = transforms_source(folder, inputs, options);
     if (!src.ok()) return src.status();
     return Located{std::move(src).value(), folder};
   }
@@ -617,7 +745,7 @@ Expected<Located> locate(const std::string& root, const DatasetOptions& options,
   if (layout == DatasetLayout::kTransforms) {
     if (inputs.empty())
       return io_error(root + ": no transforms.json or transforms_train.json (a NeRF-style dataset was asked for)");
-    auto src = transforms_source(root, inputs);
+    auto src = transforms_source(root, inputs, options);
     if (!src.ok()) return src.status();
     return Located{std::move(src).value(), root};
   }
@@ -632,14 +760,10 @@ Expected<Dataset> load(const std::string& root, const DatasetOptions& options) {
   return assemble(root, located->folder, std::move(located->src), options);
 }
 
-// A camera plan as the PINHOLE or OPENCV camera it stands for (DatasetFileView::camera).
+// A camera plan's stored camera (DatasetFileView::camera) with the given id.
 ColmapCamera plan_camera(const CameraPlan& plan, uint32_t id) {
-  ColmapCamera cam;
+  ColmapCamera cam = plan.stored;
   cam.id = id;
-  cam.width = plan.width, cam.height = plan.height;
-  cam.model = plan.distorted() ? "OPENCV" : "PINHOLE";
-  cam.params = {plan.fx, plan.fy, plan.cx, plan.cy};
-  if (plan.distorted()) cam.params.insert(cam.params.end(), {plan.k1, plan.k2, plan.p1, plan.p2});
   return cam;
 }
 

@@ -62,6 +62,18 @@ void composite_target(const Image8& image, const Image8& mask, int s, const floa
     band(0, bands, 0);
 }
 
+void valid_target(const Image8& valid, int s, uint8_t* out) {
+  const int w = valid.width, out_w = w / s, out_h = valid.height / s;
+  for (int y = 0; y < out_h; ++y) {
+    for (int x = 0; x < out_w; ++x) {
+      bool all = true;
+      for (int dy = 0; dy < s && all; ++dy)
+        for (int dx = 0; dx < s && all; ++dx) all = valid.pixels[size_t(y * s + dy) * size_t(w) + size_t(x * s + dx)] != 0;
+      out[size_t(y) * size_t(out_w) + size_t(x)] = all ? 255 : 0;
+    }
+  }
+}
+
 Image8 composite_rgb8(const Image8& image, const Image8& mask, const float background[3]) {
   if (mask.empty()) return image;
   Image8 out;

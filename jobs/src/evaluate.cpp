@@ -26,7 +26,7 @@ Status evaluate_run(const EvaluateRunOptions& a, EvaluateRunSummary* summary) {
                             "a splat file (" + std::string(io::supported_splat_extensions()) + ")");
   if (a.split != "test" && a.split != "train" && a.split != "all")
     return invalid_argument("--split: '" + a.split + "' is not one of test, train, all");
-  Expected<ModelViews> loaded = load_model_views(a.input, a.dataset, a.max_width, a.split);
+  Expected<ModelViews> loaded = load_model_views(a.input, a.dataset, a.max_width, a.split, a.fisheye_fov);
   if (!loaded.ok()) return loaded.status();
   const ModelSource* src = &loaded->source;
   const model::HybridModel* model = &loaded->model;

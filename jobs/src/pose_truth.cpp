@@ -136,6 +136,9 @@ Status write_posed_model(const std::string& dataset_root, const std::vector<std:
   if (replaced != names.size())
     return invalid_argument(dataset_root + ": " + std::to_string(names.size() - replaced) + " of the posed images are not in the dataset");
   GS_RETURN_IF_ERROR(io::write_colmap_text(files->model, out_dir));
+  // A fisheye camera has no form in the transforms files hbgs writes and reads: the COLMAP model only.
+  for (const io::DatasetFileView& v : files->views)
+    if (io::is_fisheye_model(v.camera.model)) return Status::Ok();
   return write_posed_transforms(*files, out_dir);
 }
 

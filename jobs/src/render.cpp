@@ -35,12 +35,16 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// PSNR of the render against the view's image (gs::metrics::psnr_u8, +inf when identical); NaN
+// PSNR of the render against the view's image (gs::metrics::psnr_u8, +inf when identical), over
+// the pixels that have a source when the view marks some without (io::DatasetView::valid); NaN
 // when their sizes differ.
-double view_psnr(const io::Image8& render, const io::Image8& photo) {
+double view_psnr(const io::Image8& render, const io::DatasetView& view) {
+  const io::Image8& photo = view.image;
   if (render.width != photo.width || render.height != photo.height || render.channels != 3 || photo.channels != 3 ||
       render.pixels.size() != photo.pixels.size() || render.pixels.empty())
     return std::numeric_limits<double>::quiet_NaN();
+  if (view.valid.pixels.size() == size_t(render.width) * size_t(render.height))
+    return metrics::psnr_u8_masked(render.pixels.data(), photo.pixels.data(), view.valid.pixels.data(), render.width, render.height);
   return metrics::psnr_u8(render.pixels.data(), photo.pixels.data(), render.width, render.height);
 }
 
@@ -353,7 +357,7 @@ Status render_splats(const RenderRunOptions& a, const std::function<void(const R
     rv.width = w;
     rv.height = h;
     rv.ms = ms;
-    rv.psnr = view_psnr(img, v.image);
+    rv.psnr = view_psnr(img, v);
     rv.gaussians = r.renderer.stats().visible;
     isects.push_back(r.renderer.stats().isects);
     results.push_back(std::move(rv));

@@ -177,6 +177,10 @@ Expected<ModelSource> resolve_model_source(const std::string& path, const std::s
   if (s.dataset.empty())
     return invalid_argument("no dataset for " + path + ": no " + kRunJson + " next to it names one; pass --dataset DIR");
   s.max_width = max_width_override >= 0 ? max_width_override : run.value("max_width", 0);
+  if (run.contains("fisheye_fov")) {
+    if (!run["fisheye_fov"].is_number()) return parse_error(run_json + ": fisheye_fov is not a number");
+    s.fisheye_fov = run["fisheye_fov"].get<double>();
+  }
   if (run.contains("options") && run["options"].is_object() && run["options"].contains("background")) {
     if (!run["options"]["background"].is_string()) return parse_error(run_json + ": options.background is not a string");
     s.background = run["options"]["background"].get<std::string>();
@@ -194,10 +198,12 @@ Expected<model::Background> model_background(const ModelSource& source, const st
 }
 
 Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& root, int max_width,
-                                                                 const std::string& split, const SceneFrame* frame) {
+                                                                 const std::string& split, const SceneFrame* frame,
+                                                                 double fisheye_fov) {
   GS_RETURN_IF_ERROR(check_dataset_path(root));
   io::DatasetOptions opt;
   opt.max_width = max_width;
+  opt.fisheye_fov_deg = fisheye_fov;
   if (frame) opt.frame = *frame;
   if (split == "test") opt.images = io::DatasetOptions::Images::kTest;
   if (split == "train") opt.images = io::DatasetOptions::Images::kTrain;
@@ -212,11 +218,12 @@ Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& r
 }
 
 Expected<ModelViews> load_model_views(const std::string& input, const std::string& dataset_override, int max_width_override,
-                                      const std::string& split) {
+                                      const std::string& split, double fisheye_fov_override) {
   ModelViews out;
   Expected<ModelSource> src = resolve_model_source(input, dataset_override, max_width_override);
   if (!src.ok()) return src.status();
   out.source = std::move(src).value();
+  if (fisheye_fov_override >= 0) out.source.fisheye_fov = fisheye_fov_override;
   if (is_splat_file(out.source.model_path)) {
     Expected<GaussianCloud> cloud = io::read_gaussians(out.source.model_path);
     if (!cloud.ok()) return cloud.status();
@@ -230,7 +237,8 @@ Expected<ModelViews> load_model_views(const std::string& input, const std::strin
   // The dataset goes into the model's scene frame; plain Gaussians (in the user's frame, as every
   // splat file is) go into the dataset's.
   Expected<std::unique_ptr<LoadedDataset>> data =
-      load_dataset_split(out.source.dataset, out.source.max_width, split, out.cloud ? nullptr : &out.model.frame);
+      load_dataset_split(out.source.dataset, out.source.max_width, split, out.cloud ? nullptr : &out.model.frame,
+                         out.source.fisheye_fov);
   if (!data.ok()) return data.status();
   out.data = std::move(data).value();
   if (out.cloud) cloud_to_frame(out.data->dataset.frame, out.cloud.get());

@@ -46,6 +46,7 @@ void for_each_recorded_option(TrainRunOptions* a, Visit&& visit) {
   visit("pose-init", &a->pose_init, true);
   visit("sfm-images", &a->sfm_images, true);
   visit("max-width", &a->max_width, true);
+  visit("fisheye-fov", &a->fisheye_fov, true);
   visit("iterations", &a->iterations, false);
   visit("time-budget", &a->time_budget, false);
   visit("checkpoint-every", &a->checkpoint_every, false);
@@ -115,6 +116,8 @@ Expected<double> parse_time_budget(const std::string& text) {
 std::string model_options_json(TrainRunOptions a) {
   nlohmann::json j = nlohmann::json::object();
   for_each_recorded_option(&a, [&](const char* key, auto* field, bool model_option) {
+    // fisheye-fov only when set: the record of every other run (and its checkpoints) is as before.
+    if (std::string(key) == "fisheye-fov" && a.fisheye_fov == 0) return;
     if (model_option) j[key] = *field;
   });
   return j.dump();
@@ -162,6 +165,7 @@ std::string run_json(const TrainRunOptions& a, const SceneFrame& frame) {
   j["format"] = "hbgs-run";
   j["dataset"] = absolute_path(a.dataset);
   j["max_width"] = a.max_width;
+  if (a.fisheye_fov != 0) j["fisheye_fov"] = a.fisheye_fov;  // only when set: an ordinary run.json is as before
   j["options"] = {{"iterations", a.iterations},         {"time-budget", a.time_budget},
                   {"image-features", a.image_features},
                   {"background", a.background},
@@ -178,8 +182,9 @@ std::string run_json(const TrainRunOptions& a, const SceneFrame& frame) {
                   {"feature-refresh", a.feature_refresh},
                   {"pose-lr", a.pose_lr},               {"point-align", a.point_align},
                   {"register-passes", a.register_passes}, {"pose-init", a.pose_init},
-                  {"sfm-images", a.sfm_images},         {"carve-points", a.carve_points},
-                  {"view-check", a.view_check}};
+                  {"sfm-images", a.sfm_images},         {"carve-points", a.carve_points}};
+  if (a.fisheye_fov != 0) j["options"]["fisheye-fov"] = a.fisheye_fov;
+  if (!a.view_check) j["options"]["view-check"] = false;  // (an ordinary run.json is as before)
   // Only a scene trained in a frame of its own records it (an ordinary run.json is as before).
   if (!frame.identity())
     j["scene_frame"] = {{"centre", {frame.centre[0], frame.centre[1], frame.centre[2]}}, {"scale", frame.scale},

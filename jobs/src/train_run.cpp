@@ -276,10 +276,11 @@ Status TrainRun::start() {
 
 nlohmann::json TrainRun::held_back_json() const {
   // Why each view was held back at the start (a resumed run's session did not check again: its
-  // lists are empty, still_held comes from the checkpoint), and where those views are now.
+  // lists are empty; still_held and repaired come from the checkpoint), and where those views are now.
   nlohmann::json unregistered = nlohmann::json::array(), suspect = nlohmann::json::array();
-  nlohmann::json still = nlohmann::json::array(), repaired = nlohmann::json::array();
+  nlohmann::json still = nlohmann::json::array(), repaired = nlohmann::json::array(), confirmed = nlohmann::json::array();
   const std::vector<uint8_t>& held = trainer_->held_back();
+  const std::vector<uint8_t>& moved = trainer_->repaired();
   size_t at_start = 0;
   for (size_t i = 0; i < held.size(); ++i) {
     const bool unreg = i < d_->sfm_registered.size() && !d_->sfm_registered[i];
@@ -288,12 +289,14 @@ nlohmann::json TrainRun::held_back_json() const {
     if (susp) suspect.push_back(d_->train_names[i]);
     if (unreg || susp) ++at_start;
     if (held[i]) still.push_back(d_->train_names[i]);
-    else if (unreg || susp) repaired.push_back(d_->train_names[i]);
+    else if (moved[i]) repaired.push_back(d_->train_names[i]);
+    else if (unreg || susp) confirmed.push_back(d_->train_names[i]);
   }
   return nlohmann::json{{"at_start", at_start},
                         {"not_registered_by_sfm", unregistered},
                         {"contradicted_by_points", suspect},
-                        {"released_by_registration", repaired},
+                        {"repaired", repaired},
+                        {"confirmed_at_given_pose", confirmed},
                         {"still_held", still}};
 }
 

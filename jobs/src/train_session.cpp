@@ -73,7 +73,7 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
   std::unique_ptr<TrainSession> session(new TrainSession());
   Impl& d = *session->impl_;
   d.options = options;
-  Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(options.dataset, options.max_width, "all");
+  Expected<std::unique_ptr<LoadedDataset>> data = load_dataset_split(options.dataset, options.max_width, "all", nullptr, options.fisheye_fov);
   if (!data.ok()) return data.status();
   d.dataset = std::move((*data)->dataset);
   GS_RETURN_IF_ERROR(apply_pose_noise(&d.dataset, options.pose_noise, options.pose_noise_on, &d.truth));

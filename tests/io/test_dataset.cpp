@@ -173,14 +173,15 @@ TEST_CASE("load_dataset: undistortion-free models and refused models") {
   CHECK(ds->views[1].image.pixels == img.pixels);  // zero distortion: no resampling at all
   CHECK(ds->points_xyz == std::vector<float>{0.5f, 0, 0});
 
-  TempDir fov;
-  write_dataset(fov.path(), {{5, "FOV", 16, 12, {20, 20, 8, 6, 0.9}}}, {img});
-  const Status s = load_dataset(fov.path()).status();
-  check_error(s, {"FOV", "camera 5"});
+  // The models hbgs does not undistort (the fisheye ones: test_fisheye.cpp).
+  TempDir full;
+  write_dataset(full.path(), {{5, "FULL_OPENCV", 16, 12, {20, 20, 8, 6, 0.1, 0, 0, 0, 0, 0, 0, 0}}}, {img});
+  const Status s = load_dataset(full.path()).status();
+  check_error(s, {"FULL_OPENCV", "camera 5"});
   CHECK(s.code() == StatusCode::kUnsupported);
-  TempDir fish;
-  write_dataset(fish.path(), {{9, "OPENCV_FISHEYE", 16, 12, {20, 20, 8, 6, 0, 0, 0, 0}}}, {img});
-  check_error(load_dataset(fish.path()).status(), {"OPENCV_FISHEYE", "camera 9"});
+  TempDir prism;
+  write_dataset(prism.path(), {{9, "THIN_PRISM_FISHEYE", 16, 12, {20, 20, 8, 6, 0, 0, 0, 0, 0, 0, 0, 0}}}, {img});
+  check_error(load_dataset(prism.path()).status(), {"THIN_PRISM_FISHEYE", "camera 9"});
 }
 
 TEST_CASE("load_dataset: broken folders name the path") {

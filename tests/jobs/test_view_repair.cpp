@@ -55,7 +55,7 @@ TEST_CASE("view repair: three views turned 10-40 degrees are held back, then rep
       for (auto it = input.begin(); it != input.end(); ++it)
         if (it.value().get<double>() > 1) moved.push_back(it.key());
       REQUIRE(moved.size() == 3);
-      const std::vector<std::string> released = held["released_by_registration"].get<std::vector<std::string>>();
+      const std::vector<std::string> released = held["repaired"].get<std::vector<std::string>>();
       const std::vector<std::string> still = held["still_held"].get<std::vector<std::string>>();
       for (const std::string& name : moved) {
         CAPTURE(name);

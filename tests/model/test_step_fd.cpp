@@ -412,6 +412,68 @@ TEST_CASE("step graph: gradients accumulate across calls and the gradient pass r
         StatusCode::kCapacityExceeded);
 }
 
+// Pixels a view has no source for (io::DatasetView::valid, set per step as ws.valid_pixels) are
+// dropped from the loss: an all-valid map changes nothing, the target's values there do not matter,
+// and l1 is the mean absolute error over the valid pixels.
+TEST_CASE("step graph: pixels marked missing are dropped from the loss") {
+  const Problem prob(6, false);
+  RefBackend be;
+  StepWorkspace<double> ws;
+  ws.reserve(prob.M, prob.k, prob.shapes, prob.G, prob.W, prob.H);
+  const size_t pixels = size_t(prob.W) * size_t(prob.H);
+  auto run = [&](const std::vector<uint8_t>* valid, const std::vector<double>& target, Bound<double>* b, StepResult* r) {
+    b->target = target;
+    ws.valid_pixels = valid ? valid->data() : nullptr;
+    StepConfig cfg;
+    cfg.volume_weight = 0;  // the photometric loss only (the volume term has gradients of its own)
+    REQUIRE(step_forward_backward(be, b->params, prob.cam, b->target.data(), cfg, ws, &b->grads, r).ok());
+    ws.valid_pixels = nullptr;
+  };
+  Bound<double> plain(prob), all(prob);
+  StepResult r_plain, r_all;
+  const std::vector<uint8_t> every(pixels, 255);
+  run(nullptr, prob.target, &plain, &r_plain);
+  run(&every, prob.target, &all, &r_all);
+  CHECK(r_all.loss == r_plain.loss);
+  CHECK(all.g_features == plain.g_features);
+  CHECK(all.g_offsets == plain.g_offsets);
+
+  // The left third of the image has no source; its target is changed wildly in the second run.
+  std::vector<uint8_t> valid(pixels, 255);
+  for (int y = 0; y < prob.H; ++y)
+    for (int x = 0; x < prob.W / 3; ++x) valid[size_t(y) * size_t(prob.W) + size_t(x)] = 0;
+  std::vector<double> other = prob.target;
+  for (size_t p = 0; p < pixels; ++p)
+    if (!valid[p])
+      for (size_t c = 0; c < 3; ++c) other[3 * p + c] = 1 - other[3 * p + c];
+  Bound<double> a(prob), b(prob);
+  StepResult ra, rb;
+  run(&valid, prob.target, &a, &ra);
+  const std::vector<double> rendered = ws.rgb;
+  run(&valid, other, &b, &rb);
+  CHECK(ra.loss == rb.loss);
+  CHECK(ra.l1 == rb.l1);
+  CHECK(a.g_features == b.g_features);
+  CHECK(a.g_offsets == b.g_offsets);
+  CHECK(ra.loss != r_plain.loss);
+  double sum = 0;
+  size_t count = 0;
+  for (size_t p = 0; p < pixels; ++p) {
+    if (!valid[p]) continue;
+    for (size_t c = 0; c < 3; ++c) sum += std::fabs(rendered[3 * p + c] - prob.target[3 * p + c]);
+    ++count;
+  }
+  CHECK(ra.l1 == doctest::Approx(sum / double(3 * count)).epsilon(1e-12));
+  // Nothing valid: no gradient at all.
+  const std::vector<uint8_t> none(pixels, 0);
+  Bound<double> z(prob);
+  StepResult rz;
+  run(&none, prob.target, &z, &rz);
+  CHECK(rz.l1 == 0);
+  CHECK(rz.ssim == 1);
+  for (double g : z.g_features) CHECK(g == 0);
+}
+
 // The pose gradient (rasteriser twist + view direction and distance through the camera centre).
 // A translation twist rho moves every camera-space point by rho, exactly as shifting all world
 // content by R^T rho does; anchor positions are double here, so the translation components are

@@ -60,14 +60,17 @@ struct SparsePoint {
 // by the rendered pixel (images: RGB or RGBA, one per view), each with the views that see its
 // noise-free surface point (at least two when there are two views or more). Candidates come from a
 // sequential stream and their tracks are computed in parallel, so the result does not depend on the
-// thread count. *draws: pixel draws used.
+// thread count. *draws: pixel draws used. fisheye_focal > 0: the views' lens is the equidistant
+// fisheye of that focal length about (cx, cy) (rays up to 90 degrees from the axis; SynthOptions).
 std::vector<SparsePoint> sample_sparse_points(const Scene& scene, const std::vector<ViewSetup>& views,
                                               const std::vector<gs::io::Image8>& images, int num_points, float noise,
                                               uint64_t seed, int threads, const std::function<bool(const SceneHit&)>& accept,
-                                              long long* draws);
+                                              long long* draws, double fisheye_focal = 0);
 
 // The one PINHOLE camera (id 1) of a synth COLMAP model.
 gs::io::ColmapCamera colmap_pinhole(const gs::PinholeIntrinsics& K);
+// The OPENCV_FISHEYE camera (id 1) of a fisheye synth dataset: fx = fy = focal, K's cx, cy, k = 0.
+gs::io::ColmapCamera colmap_fisheye(const gs::PinholeIntrinsics& K, double focal);
 
 // The COLMAP model: one PINHOLE camera (id 1), images with ids from 1 in view order, the points
 // with ids from 1 and their tracks as POINTS2D.

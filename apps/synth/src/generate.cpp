@@ -71,13 +71,17 @@ ViewSetup make_view(const gs::PinholeIntrinsics& intr, const gs::Pose& pose) {
 std::vector<SparsePoint> sample_sparse_points(const Scene& scene, const std::vector<ViewSetup>& views,
                                               const std::vector<gs::io::Image8>& images, int num_points, float noise,
                                               uint64_t seed, int threads, const std::function<bool(const SceneHit&)>& accept,
-                                              long long* draws_out) {
+                                              long long* draws_out, double fisheye_focal) {
   const int num_views = int(views.size());
   const gs::PinholeIntrinsics& K = views.front().camera.intr;
   const int W = K.width, H = K.height;
+  constexpr double kHalfPi = 1.57079632679489661923;
   std::vector<ViewRays> rays;
   rays.reserve(size_t(num_views));
-  for (const ViewSetup& v : views) rays.emplace_back(v.camera);
+  for (const ViewSetup& v : views) {
+    if (fisheye_focal > 0) rays.emplace_back(v.camera, fisheye_focal, kHalfPi);
+    else rays.emplace_back(v.camera);
+  }
   const double fx = K.fx, fy = K.fy, cx = K.cx, cy = K.cy;
 
   Rng prng(hash_combine(seed, 0x90175ULL));
@@ -96,7 +100,7 @@ std::vector<SparsePoint> sample_sparse_points(const Scene& scene, const std::vec
       int v = prng.below(num_views);
       int x = prng.below(W), y = prng.below(H);
       double o[3], d[3];
-      rays[size_t(v)].ray(x + 0.5, y + 0.5, o, d);
+      if (!rays[size_t(v)].ray(x + 0.5, y + 0.5, o, d)) continue;  // outside the fisheye's circle
       SceneHit hit;
       if (!scene.intersect(o, d, &hit)) continue;
       if (!accept(hit)) continue;
@@ -113,7 +117,8 @@ std::vector<SparsePoint> sample_sparse_points(const Scene& scene, const std::vec
       SparsePoint& c = cands[i];
       const double* s = &surface[3 * i];
       for (int v = 0; v < num_views; ++v) {
-        Projection p = project(views[size_t(v)].camera.pose, fx, fy, cx, cy, c.xyz);
+        Projection p = fisheye_focal > 0 ? project_fisheye(views[size_t(v)].camera.pose, fisheye_focal, kHalfPi, cx, cy, c.xyz)
+                                         : project(views[size_t(v)].camera.pose, fx, fy, cx, cy, c.xyz);
         if (!(p.cam[2] > 1e-6) || !(p.u >= 0 && p.u < W && p.v >= 0 && p.v < H)) continue;
         // Visibility of the noise-free surface point: nothing may lie between the camera centre
         // and it, up to a tolerance (1 mm + 1e-4 of the distance) that absorbs float round-off
@@ -144,6 +149,16 @@ gs::io::ColmapCamera colmap_pinhole(const gs::PinholeIntrinsics& K) {
   cam.width = K.width;
   cam.height = K.height;
   cam.params = {K.fx, K.fy, K.cx, K.cy};
+  return cam;
+}
+
+gs::io::ColmapCamera colmap_fisheye(const gs::PinholeIntrinsics& K, double focal) {
+  gs::io::ColmapCamera cam;
+  cam.id = 1;
+  cam.model = "OPENCV_FISHEYE";
+  cam.width = K.width;
+  cam.height = K.height;
+  cam.params = {focal, focal, K.cx, K.cy, 0, 0, 0, 0};
   return cam;
 }
 
@@ -258,21 +273,24 @@ gs::Expected<SynthSummary> generate_impl(const SynthOptions& opt, const std::str
   std::vector<ViewSetup> views = make_views(opt);
   const int num_views = int(views.size());
   const int W = opt.width, H = opt.height;
+  const bool fisheye = opt.camera == SynthOptions::Camera::kFisheye;
+  const double lens_focal = fisheye ? fisheye_focal(W) : 0.0;
 
   // 1. Render. Parallel over rows inside each view; the jitter depends on (seed, view, pixel).
   std::vector<gs::io::Image8> images(static_cast<size_t>(num_views));
   for (int v = 0; v < num_views; ++v) {
     images[size_t(v)] = scene.render(views[size_t(v)].camera, opt.samples_per_axis,
-                                     detail::hash_combine(opt.seed, 0x1000000ULL + uint64_t(v)), opt.threads);
+                                     detail::hash_combine(opt.seed, 0x1000000ULL + uint64_t(v)), opt.threads, lens_focal);
   }
-  if (opt.verbose) std::fprintf(stderr, "synth: rendered %d views of %dx%d in %.2f s\n", num_views, W, H, elapsed());
+  if (opt.verbose)
+    std::fprintf(stderr, "synth: rendered %d %sviews of %dx%d in %.2f s\n", num_views, fisheye ? "fisheye " : "", W, H, elapsed());
 
   // 2. Sparse points on anything within 10 m of the layout centre: that is where the views overlap.
   long long draws = 0;
   const std::vector<detail::SparsePoint> accepted = detail::sample_sparse_points(
       scene, views, images, opt.num_points, opt.point_noise, opt.seed, opt.threads,
       [](const SceneHit& hit) { return std::hypot(hit.position[0] - kTarget[0], hit.position[1] - kTarget[1]) <= 10.0; },
-      &draws);
+      &draws, lens_focal);
   if (opt.verbose) {
     size_t obs = 0;
     for (const detail::SparsePoint& c : accepted) obs += c.track.size();
@@ -284,7 +302,8 @@ gs::Expected<SynthSummary> generate_impl(const SynthOptions& opt, const std::str
   const int digits = std::max(4, int(std::to_string(num_views - 1).size()));
   std::vector<std::string> names;
   for (int v = 0; v < num_views; ++v) names.push_back(detail::view_name(v, digits, ".png"));
-  const gs::io::ColmapModel model = detail::make_colmap_model(views, names, accepted);
+  gs::io::ColmapModel model = detail::make_colmap_model(views, names, accepted);
+  if (fisheye) model.cameras.front() = detail::colmap_fisheye(views.front().camera.intr, lens_focal);
 
   // 4. Write.
   namespace fs = std::filesystem;
@@ -312,6 +331,8 @@ gs::Expected<SynthSummary> generate_impl(const SynthOptions& opt, const std::str
 }
 
 }  // namespace
+
+double fisheye_focal(int width) { return width / kPi; }
 
 std::vector<gs::Camera> make_cameras(const SynthOptions& options) {
   std::vector<gs::Camera> cams;

@@ -413,14 +413,15 @@ void Scene::radiance(const double origin[3], const double dir[3], float rgb[3]) 
   rgb[2] = float(clamp01(c.z));
 }
 
-gs::io::Image8 Scene::render(const gs::Camera& camera, int samples_per_axis, uint64_t jitter_seed, int threads) const {
+gs::io::Image8 Scene::render(const gs::Camera& camera, int samples_per_axis, uint64_t jitter_seed, int threads,
+                             double fisheye_focal) const {
   gs::io::Image8 img;
-  render_layers(camera, samples_per_axis, jitter_seed, threads, &img, nullptr);
+  render_layers(camera, samples_per_axis, jitter_seed, threads, &img, nullptr, fisheye_focal);
   return img;
 }
 
 void Scene::render_layers(const gs::Camera& camera, int samples_per_axis, uint64_t jitter_seed, int threads,
-                          gs::io::Image8* composite, gs::io::Image8* subject) const {
+                          gs::io::Image8* composite, gs::io::Image8* subject, double fisheye_focal) const {
   const int w = camera.intr.width, h = camera.intr.height;
   const int n = std::max(1, samples_per_axis);
   const auto make = [&](gs::io::Image8* img, int channels) {
@@ -433,7 +434,8 @@ void Scene::render_layers(const gs::Camera& camera, int samples_per_axis, uint64
   make(composite, 3);
   make(subject, 4);
   if (w <= 0 || h <= 0) return;
-  detail::ViewRays rays(camera);
+  const detail::ViewRays rays = fisheye_focal > 0 ? detail::ViewRays(camera, fisheye_focal, 0.5 * 3.14159265358979323846)
+                                                   : detail::ViewRays(camera);
   gs::platform::ThreadPool pool(threads);
   pool.for_each_index(size_t(h), [&](size_t row) {
     const int y = int(row);
@@ -450,7 +452,7 @@ void Scene::render_layers(const gs::Camera& camera, int samples_per_axis, uint64
           oy = (double(s / n) + detail::to_unit(detail::mix64(hs))) / n;
         }
         double o[3], d[3];
-        rays.ray(x + ox, y + oy, o, d);
+        if (!rays.ray(x + ox, y + oy, o, d)) continue;  // outside the fisheye's circle: black
         int object = -1;
         const Vec3 c = impl_->radiance({o[0], o[1], o[2]}, {d[0], d[1], d[2]}, &object);
         const double rgb[3] = {clamp01(c.x), clamp01(c.y), clamp01(c.z)};

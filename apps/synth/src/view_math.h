@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
-// Pinhole ray generation and projection for the synth scene, in double precision, following
-// gs/camera.h: x_cam = R x_world + t, u = fx x/z + cx, v = fy y/z + cy (pixel centres at +0.5).
+// Ray generation and projection for the synth scene, in double precision, following gs/camera.h:
+// x_cam = R x_world + t, u = fx x/z + cx, v = fy y/z + cy (pixel centres at +0.5); or, for the
+// fisheye datasets, an equidistant lens (COLMAP's OPENCV_FISHEYE with k1..k4 = 0): a ray at angle
+// theta from the axis lands theta * f from (cx, cy) in its direction.
 #pragma once
 
 #include <cmath>
@@ -35,11 +37,21 @@ class ViewRays {
     cx_ = cam.intr.cx;
     cy_ = cam.intr.cy;
   }
+  // The same pose and principal point through an equidistant fisheye of focal length f (pixels)
+  // instead of the pinhole; rays up to max_theta (radians) from the axis.
+  ViewRays(const gs::Camera& cam, double fisheye_focal, double max_theta) : ViewRays(cam) {
+    fisheye_f_ = fisheye_focal;
+    max_theta_ = max_theta;
+  }
 
   const double* centre() const { return centre_; }
+  double fisheye_focal() const { return fisheye_f_; }  // 0: pinhole
+  double max_theta() const { return max_theta_; }
 
   // World-space ray through image point (u, v) (pixels, top-left corner at 0); dir is unit length.
-  void ray(double u, double v, double origin[3], double dir[3]) const {
+  // False (no ray) for a fisheye point beyond max_theta.
+  bool ray(double u, double v, double origin[3], double dir[3]) const {
+    if (fisheye_f_ > 0) return fisheye_ray(u, v, origin, dir);
     double c[3] = {(u - cx_) / fx_, (v - cy_) / fy_, 1.0};
     double n2 = 0;
     for (int i = 0; i < 3; ++i) {
@@ -51,12 +63,27 @@ class ViewRays {
       dir[i] *= inv;
       origin[i] = centre_[i];
     }
+    return true;
   }
 
  private:
+  bool fisheye_ray(double u, double v, double origin[3], double dir[3]) const {
+    const double a = (u - cx_) / fisheye_f_, b = (v - cy_) / fisheye_f_;
+    const double theta = std::sqrt(a * a + b * b);
+    if (theta > max_theta_) return false;
+    const double s = theta > 0 ? std::sin(theta) / theta : 1.0;
+    const double c[3] = {a * s, b * s, std::cos(theta)};  // unit length
+    for (int i = 0; i < 3; ++i) {
+      dir[i] = rinv_[3 * i] * c[0] + rinv_[3 * i + 1] * c[1] + rinv_[3 * i + 2] * c[2];
+      origin[i] = centre_[i];
+    }
+    return true;
+  }
+
   double rinv_[9];
   double centre_[3];
   double fx_, fy_, cx_, cy_;
+  double fisheye_f_ = 0, max_theta_ = 0;
 };
 
 // Camera-space point and its projection, computed in double from the float pose exactly as a
@@ -73,6 +100,22 @@ inline Projection project(const gs::Pose& pose, double fx, double fy, double cx,
   }
   p.u = fx * p.cam[0] / p.cam[2] + cx;
   p.v = fy * p.cam[1] / p.cam[2] + cy;
+  return p;
+}
+// The same through an equidistant fisheye of focal f: theta = the angle from the axis, the point
+// lands f theta from (cx, cy) in its direction. cam[2] is set to -1 (not seen) beyond max_theta.
+inline Projection project_fisheye(const gs::Pose& pose, double f, double max_theta, double cx, double cy, const double X[3]) {
+  Projection p;
+  for (int r = 0; r < 3; ++r) {
+    p.cam[r] = double(pose.R[3 * r]) * X[0] + double(pose.R[3 * r + 1]) * X[1] + double(pose.R[3 * r + 2]) * X[2] +
+               double(pose.t[r]);
+  }
+  const double rho = std::sqrt(p.cam[0] * p.cam[0] + p.cam[1] * p.cam[1]);
+  const double theta = std::atan2(rho, p.cam[2]);
+  const double scale = rho > 0 ? f * theta / rho : 0.0;
+  p.u = scale * p.cam[0] + cx;
+  p.v = scale * p.cam[1] + cy;
+  if (!(theta <= max_theta)) p.cam[2] = -1;
   return p;
 }
 

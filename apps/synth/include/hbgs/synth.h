@@ -30,6 +30,18 @@ struct SynthOptions {
   bool verbose = false;       // progress on stderr
   int samples_per_axis = 2;   // anti-aliasing: samples_per_axis^2 jittered rays per pixel
   int threads = 0;            // worker threads; 0 = all hardware threads (output never depends on it)
+  // The lens. kPinhole: the PINHOLE camera below. kFisheye (`hbgs synth --camera fisheye`): a
+  // 180-degree equidistant fisheye, written as COLMAP's OPENCV_FISHEYE with k1 = k2 = k3 = k4 = 0:
+  // fx = fy = width / pi, cx = width / 2, cy = height / 2, so theta = 90 degrees from the axis lies
+  // on the circle of radius width / 2 about the centre (through the middles of the left and right
+  // edges): 180 degrees across the width, 180 height / width degrees across the height; the corners
+  // outside that circle see nothing and are black. Same seed, same poses (and scene) as the pinhole
+  // dataset of any size: the pinhole twin of a fisheye dataset is the default synth with the same
+  // seed. The fisheye's centre detail is a pinhole's of focal width / pi, so it needs more pixels
+  // than the twin for the twin's detail: 6x the twin's width (1536x1152 for the 256x192 twin,
+  // focal 488.9 against 230.5) trains to the twin's test PSNR within noise, 4x (1024x768, focal
+  // 325.9) loses 0.8 dB to the resampling's blur (README "Fisheye cameras").
+  enum class Camera { kPinhole, kFisheye } camera = Camera::kPinhole;
 };
 
 struct SynthSummary {
@@ -47,13 +59,17 @@ struct SynthSummary {
 // by the rendered pixel, each with a track of every view that sees it (>= 2 views when there are
 // two or more) and the exact projections stored as POINTS2D.
 // One shared PINHOLE camera: fx = fy = 0.9 * width rounded to 1/4 px (exact in float),
-// cx = width / 2, cy = height / 2. Identical options give byte-identical files.
+// cx = width / 2, cy = height / 2 (kFisheye: the OPENCV_FISHEYE camera above; the sparse points'
+// POINTS2D are its exact projections). Identical options give byte-identical files.
 gs::Expected<SynthSummary> generate_scene(const SynthOptions& options, const std::string& out_dir);
 
 // The cameras generate_scene uses for these options (intrinsics + pose, in view order); empty if
-// the options are invalid. The poses are exactly those gs::io::pose_from_colmap recovers from the
+// the options are invalid. kFisheye: intr holds the pinhole camera of that size (the poses are the
+// fisheye's; its lens is fisheye_focal's). The poses are exactly those gs::io::pose_from_colmap recovers from the
 // written qvec/tvec, and the images are rendered with them.
 std::vector<gs::Camera> make_cameras(const SynthOptions& options);
+// The equidistant focal length of a kFisheye dataset of this width (width / pi), pixels.
+double fisheye_focal(int width);
 
 // Camera paths through the synth scenes, rendered as video frames with their true poses.
 //
@@ -238,12 +254,17 @@ class Scene {
   void radiance(const double origin[3], const double dir[3], float rgb[3]) const;
   // Renders an 8-bit RGB view with samples_per_axis^2 jittered samples per pixel; the jitter is
   // a function of (jitter_seed, pixel, sample) only, so the result does not depend on `threads`.
-  gs::io::Image8 render(const gs::Camera& camera, int samples_per_axis, uint64_t jitter_seed, int threads = 0) const;
+  // fisheye_focal > 0: the camera's pose and principal point (cx, cy) through an equidistant fisheye
+  // of that focal length (pixels) instead of its pinhole (fx, fy unused): the ray at angle theta
+  // from the axis lands at radius fisheye_focal * theta; samples beyond 90 degrees (outside the
+  // 180-degree lens's circle) are black.
+  gs::io::Image8 render(const gs::Camera& camera, int samples_per_axis, uint64_t jitter_seed, int threads = 0,
+                        double fisheye_focal = 0) const;
   // One pass, two layers (either may be null): `composite` is render()'s RGB image; `subject` is
   // RGBA with straight alpha: alpha = the fraction of the samples whose first hit is the subject,
   // RGB = their mean colour (0 where none is).
   void render_layers(const gs::Camera& camera, int samples_per_axis, uint64_t jitter_seed, int threads,
-                     gs::io::Image8* composite, gs::io::Image8* subject) const;
+                     gs::io::Image8* composite, gs::io::Image8* subject, double fisheye_focal = 0) const;
 
  private:
   struct Impl;

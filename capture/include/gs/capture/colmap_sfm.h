@@ -14,11 +14,22 @@
 namespace gs::capture {
 
 enum class Matcher { kSequential, kExhaustive };
+
+// The camera models COLMAP's feature extractor takes (ColmapOptions::camera_model).
+inline constexpr const char* kColmapCameraModels[] = {
+    "SIMPLE_PINHOLE", "PINHOLE", "SIMPLE_RADIAL", "RADIAL", "OPENCV", "FULL_OPENCV", "OPENCV_FISHEYE",
+    "RADIAL_FISHEYE", "SIMPLE_RADIAL_FISHEYE", "FOV", "THIN_PRISM_FISHEYE"};
+// Whether hbgs undistorts this model itself (the fisheye models io::load_dataset reads).
+bool is_fisheye_model_name(const std::string& model);
 Expected<Matcher> parse_matcher(const std::string& name);  // "sequential", "exhaustive"
 
 struct ColmapOptions {
   std::string colmap = "colmap";          // program name or path
   Matcher matcher = Matcher::kSequential;  // video frames are in order: sequential is linear time
+  // COLMAP's camera model for the one shared camera (--ImageReader.camera_model; kColmapCameraModels).
+  // The fisheye models (OPENCV_FISHEYE, RADIAL_FISHEYE, SIMPLE_RADIAL_FISHEYE, FOV) are not given
+  // to COLMAP's image_undistorter: run_colmap_sfm writes the model and frames as they are, and hbgs
+  // undistorts them on load (io::DatasetOptions::fisheye_fov_deg).
   std::string camera_model = "SIMPLE_RADIAL";
   std::string camera_params;               // "fx,fy,cx,cy" etc.: known intrinsics, held fixed in mapping
   bool permissive_registration = false;    // register images on fewer inliers (12, 10 %; COLMAP: 30, 25 %),
@@ -51,7 +62,8 @@ Status run_colmap_reconstruction(const std::string& frames_dir, const std::strin
                                  std::string* model_dir);
 
 // Runs COLMAP on frames_dir (PNG/JPEG files) using work_dir for its database and raw models, and
-// writes the undistorted dataset to dataset_dir (created). Errors: COLMAP missing (says how to
+// writes the undistorted dataset to dataset_dir (created); with a fisheye camera model the
+// registered frames as they are and COLMAP's model (hbgs undistorts them on load). Errors: COLMAP missing (says how to
 // install it or point --colmap at it), a stage failing (names the stage, exit code and the log's
 // last lines), too few images registered (says how many of how many).
 Status run_colmap_sfm(const std::string& frames_dir, const std::string& work_dir, const std::string& dataset_dir,

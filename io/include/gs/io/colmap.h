@@ -18,7 +18,7 @@ namespace gs::io {
 
 struct ColmapCamera {
   uint32_t id = 0;
-  std::string model;           // "PINHOLE", "SIMPLE_PINHOLE", "SIMPLE_RADIAL", "RADIAL", "OPENCV", ...
+  std::string model;           // "PINHOLE", "SIMPLE_PINHOLE", "SIMPLE_RADIAL", "RADIAL", "OPENCV", "OPENCV_FISHEYE", ...
   int width = 0, height = 0;
   std::vector<double> params;  // model-specific, COLMAP order
 };
@@ -83,6 +83,29 @@ void pose_to_colmap(const Pose& pose, double qvec[4], double tvec[3]);
 // identity frame exactly pose_to_colmap's values.
 void pose_to_colmap(const SceneFrame& frame, const Pose& pose, double qvec[4], double tvec[3]);
 
+// Camera models (https://colmap.github.io/cameras.html; COLMAP's src/colmap/sensor/models.h), for
+// a ray (x, y, z) in camera axes (x right, y down, z forward), z > 0, pixel centres at +0.5:
+//   PINHOLE fx fy cx cy / SIMPLE_PINHOLE f cx cy: u = fx x/z + cx, v = fy y/z + cy.
+//   SIMPLE_RADIAL f cx cy k / RADIAL f cx cy k1 k2 / OPENCV fx fy cx cy k1 k2 p1 p2: on the pinhole
+//     coordinates (a, b) = (x/z, y/z), r2 = a^2 + b^2, a_d = a (1 + k1 r2 + k2 r2^2) + 2 p1 a b +
+//     p2 (r2 + 2 a^2), b_d = b (1 + k1 r2 + k2 r2^2) + 2 p2 a b + p1 (r2 + 2 b^2); u = fx a_d + cx.
+//   OPENCV_FISHEYE fx fy cx cy k1 k2 k3 k4 (equidistant): theta = the ray's angle from the axis,
+//     theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8); the image point lies
+//     theta_d from the principal point (in focal units) in the ray's direction:
+//     u = fx theta_d x / sqrt(x^2 + y^2) + cx, v = fy theta_d y / sqrt(x^2 + y^2) + cy.
+//   RADIAL_FISHEYE f cx cy k1 k2 / SIMPLE_RADIAL_FISHEYE f cx cy k: the same with k3 = k4 = 0
+//     (and k2 = 0), fx = fy = f.
+//   FOV fx fy cx cy omega (Devernay and Faugeras): the radius is
+//     atan(2 tan(theta) tan(omega / 2)) / omega instead of theta_d (tan(theta) at omega = 0).
+// colmap_project gives (u, v) for these models; false for another model, a ray with z <= 0 or a
+// non-finite result. The fisheye models only describe rays of the front half-space (theta < 90
+// degrees), and only where the radius still grows with theta: fisheye_valid_angle is the angle up
+// to which it does (radians, at most pi / 2, sampled every 0.01 degree; FOV: pi / 2 when
+// |omega| < pi, else 0), 0 for a model that is not a fisheye.
+bool colmap_project(const ColmapCamera& camera, const double ray[3], double* u, double* v);
+bool is_fisheye_model(const std::string& model);  // OPENCV_FISHEYE, RADIAL_FISHEYE, SIMPLE_RADIAL_FISHEYE, FOV
+double fisheye_valid_angle(const ColmapCamera& camera);
+
 // Which kind of folder load_dataset reads (see load_dataset).
 enum class DatasetLayout {
   kAuto,        // COLMAP when <root>/<sparse_dir> is a folder, else transforms files when present
@@ -126,6 +149,13 @@ struct DatasetOptions {
   // trainer's default initial budget (25,000) and quick to prune where the scene is empty.
   int random_points = 10000;
   uint64_t random_points_seed = 1;
+  // Fisheye cameras (OPENCV_FISHEYE, RADIAL_FISHEYE, SIMPLE_RADIAL_FISHEYE, FOV) become a PINHOLE
+  // camera of the source image's size with this horizontal field of view (degrees, across the
+  // width; 1-170), fx = fy, the principal point at the image centre. 0: the widest one up to
+  // kDefaultFisheyeFovDeg whose every pixel has a source pixel (inside the image, and within the
+  // lens's valid angle, fisheye_valid_angle); found to 0.01 degree. Pixels without a source are
+  // marked in DatasetView::valid (training and evaluation leave them out).
+  double fisheye_fov_deg = 0;
   // The frame the cameras and points are given in (gs/scene_frame.h): unset, the one
   // choose_scene_frame picks from all the views' camera centres (the identity for an ordinary scene);
   // set, that one (a trained model's, so its dataset lines up with it).
@@ -142,8 +172,19 @@ struct DatasetView {
   // the image's alpha channel or a file in masks/; empty when the dataset has none. Training and
   // evaluation compare renders with image * mask + background * (1 - mask).
   Image8 mask;
+  // Which pixels have a source pixel, 1 channel, same size as image (255: yes, 0: no), when some do
+  // not; empty when all do (always for pinhole cameras). Undistortion leaves pixels without a
+  // source: those whose position in the distorted image lies outside it, or (fisheye) beyond the
+  // lens's valid angle; such a pixel is 0 in image and mask. A downscaled pixel is valid when its
+  // area mean rounds to 255 (over 99.8 % of its area has a source). Training drops the other pixels from the loss and evaluation
+  // from its figures (gs/model/step_graph.h, gs/model/evaluate.h), instead of comparing them with
+  // the background.
+  Image8 valid;
   bool is_test = false;
 };
+// The largest default field of view for fisheye cameras (DatasetOptions::fisheye_fov_deg = 0):
+// wider pinholes stretch the image's edges (a pinhole's radius grows as tan(theta)).
+inline constexpr double kDefaultFisheyeFovDeg = 120.0;
 
 struct Dataset {
   std::string root;
@@ -166,8 +207,14 @@ struct Dataset {
 //
 // COLMAP layout: <root>/<sparse_dir> (binary or text) and <root>/<images_dir>. PINHOLE and
 // SIMPLE_PINHOLE are used directly; SIMPLE_RADIAL, RADIAL and OPENCV images are undistorted on load
-// to a PINHOLE camera with the same fx, fy, cx, cy; any other model is refused with an error naming
-// it. Images must match their camera's size. Points: the model's points3D.
+// to a PINHOLE camera with the same fx, fy, cx, cy; OPENCV_FISHEYE, RADIAL_FISHEYE,
+// SIMPLE_RADIAL_FISHEYE and FOV images to a PINHOLE camera of options.fisheye_fov_deg (the
+// projections are colmap_project's; bilinear resampling). Pixels of the undistorted image without
+// a source pixel are marked in DatasetView::valid. A fisheye camera whose radius stops growing
+// within the angles the pinhole needs (fisheye_valid_angle) is refused, naming the file and camera
+// and the widest field of view it allows; any other model (FULL_OPENCV, THIN_PRISM_FISHEYE, ...)
+// is refused with an error naming it. Images must match their camera's size. Points: the model's
+// points3D.
 //
 // Transforms layout (gs/io/transforms.h): <root>/transforms.json (instant-ngp, nerfstudio: split
 // from its test_filenames (else val_filenames) and train_filenames, frames in neither list are left
@@ -202,9 +249,12 @@ struct DatasetFileView {
   // The mask file load_dataset reads for this view (nerfstudio's mask_path or the one found in
   // options.masks_dir); "" when there is none (no masks, the image's alpha only, or none found).
   std::string mask_path;
-  // The view's camera before undistortion and downscaling, as model "PINHOLE" (fx, fy, cx, cy) or
-  // "OPENCV" (fx, fy, cx, cy, k1, k2, p1, p2) whatever the stored model (SIMPLE_RADIAL is OPENCV with
-  // fx = fy and k2 = p1 = p2 = 0); id is the model camera's id.
+  // The view's camera before undistortion and downscaling, as model "PINHOLE" (fx, fy, cx, cy),
+  // "OPENCV" (fx, fy, cx, cy, k1, k2, p1, p2), "OPENCV_FISHEYE" (fx, fy, cx, cy, k1, k2, k3, k4) or
+  // "FOV" (fx, fy, cx, cy, omega) whatever the stored model (SIMPLE_RADIAL is OPENCV with fx = fy
+  // and k2 = p1 = p2 = 0; RADIAL_FISHEYE and SIMPLE_RADIAL_FISHEYE are OPENCV_FISHEYE with fx = fy
+  // and the missing k zero): fx fy cx cy first in every case; id is the model camera's id.
+  // Writers that need a pinhole or OpenCV camera (transforms_intrinsics) refuse the fisheye ones.
   ColmapCamera camera;
   size_t model_image = 0;  // index into DatasetFiles::model.images: the view's id and pose
   bool is_test = false;    // as DatasetView::is_test

@@ -21,6 +21,11 @@ namespace gs::io {
 void composite_target(const Image8& image, const Image8& mask, int s, const float background[3], float* out,
                       platform::ThreadPool* pool = nullptr);
 
+// Which pixels of the training target at resolution divisor s exist ([H / s, W / s], the grid of
+// composite_target): 255 where every pixel of the s x s block is valid, else 0. valid: 1 channel
+// (io::DatasetView::valid, not empty). No allocation.
+void valid_target(const Image8& valid, int s, uint8_t* out);
+
 // The composite at full resolution rounded to 8 bits (what evaluation compares renders with); the
 // image itself (a copy) without a mask.
 Image8 composite_rgb8(const Image8& image, const Image8& mask, const float background[3]);

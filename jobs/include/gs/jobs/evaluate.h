@@ -21,6 +21,7 @@ struct EvaluateRunOptions {
   std::string method = "ours";  // method key in the JSON files
   std::string split = "test";   // "test", "train" or "all"
   int max_width = -1;           // -1: as trained
+  double fisheye_fov = -1;      // fisheye cameras' pinhole field of view, degrees (-1: as trained, 0: automatic)
   int threads = 0;              // 0: all CPUs
   bool renders = false;         // also write <out>/<split>/<method>/renders/*.png
   bool fixed_point = false;     // the on-device path: fixed-point blending (RenderOptions::fixed_point)

@@ -38,7 +38,8 @@ pose::PoseErrors errors_for(const std::vector<Pose>& estimated, const std::vecto
 // and poses in nerfstudio's layout (io::write_transforms_json), file_path and mask_path relative to
 // out_dir leading to the dataset's own images and masks (so ns-train and other tools read them in
 // place; hbgs's loader refuses '..' in dataset paths), with the dataset's split as
-// train_filenames / val_filenames / test_filenames (val = test) when it has test views.
+// train_filenames / val_filenames / test_filenames (val = test) when it has test views; not for a
+// dataset with a fisheye camera (OPENCV_FISHEYE, FOV, ...: the COLMAP model keeps it as stored).
 inline constexpr const char* kPosedTransformsJson = "transforms.json";
 // The poses are in the scene frame `frame` (the model's, gs/scene_frame.h) and are written in the
 // dataset's own frame.

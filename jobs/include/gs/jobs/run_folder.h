@@ -45,6 +45,7 @@ bool is_splat_file(const std::string& path);
 struct ModelSource {
   std::string model_path, run_dir, dataset;
   int max_width = 0;
+  double fisheye_fov = 0;  // run.json's "fisheye_fov" (io::DatasetOptions::fisheye_fov_deg; 0: automatic)
   std::string background = "black";  // the run's training background (run.json; black without one)
 };
 // The background to render a model on: override (parse_background's text) when not empty, else the
@@ -59,8 +60,10 @@ struct LoadedDataset {
   std::vector<const io::DatasetView*> views;  // the chosen split, into dataset.views
 };
 // frame: the scene frame to load it into (a model's); null: the dataset's own (choose_scene_frame).
+// fisheye_fov: io::DatasetOptions::fisheye_fov_deg.
 Expected<std::unique_ptr<LoadedDataset>> load_dataset_split(const std::string& root, int max_width,
-                                                             const std::string& split, const SceneFrame* frame = nullptr);
+                                                             const std::string& split, const SceneFrame* frame = nullptr,
+                                                             double fisheye_fov = 0);
 
 // A trained model (run folder or .hbgs file, as resolve_model_source) with the views of split
 // `split` of its dataset: what evaluation, rendering and batch registration start from.
@@ -77,8 +80,9 @@ struct ModelViews {
   // loaded into; for plain Gaussians their dataset's, which they were moved into.
   const SceneFrame& frame() const { return data->dataset.frame; }
 };
+// fisheye_fov_override >= 0: that field of view for fisheye cameras instead of the run's.
 Expected<ModelViews> load_model_views(const std::string& input, const std::string& dataset_override, int max_width_override,
-                                      const std::string& split);
+                                      const std::string& split, double fisheye_fov_override = -1);
 
 // Evaluates the loaded model or cloud on views (gs/model/evaluate.h).
 Expected<model::EvalResult> evaluate_loaded(const ModelViews& loaded, const std::vector<const io::DatasetView*>& views,

@@ -71,6 +71,7 @@ struct TrainRunOptions {
   uint64_t seed = 0;        // MLP initialisation and view order
   int threads = 0;          // worker threads (0: all CPUs)
   int max_width = 0;        // downscale views to at most this width (0: as stored)
+  double fisheye_fov = 0;   // fisheye cameras' pinhole field of view, degrees (0: automatic; io::DatasetOptions)
   int checkpoint_every = 1000, eval_every = 500;  // 0: only at the end / never
   std::string save_at = "1000,7000,30000";       // iterations saving model_<it>.hbgs with a full evaluation
   std::string lpips_weights;                     // "" : default_lpips_dir()

@@ -25,6 +25,12 @@ class Trainer;
 
 struct ViewMetrics {
   std::string name;
+  // A view with pixels that have no source (io::DatasetView::valid: undistortion's outside) is
+  // measured over the others: those pixels are 0 in both the render and the ground truth (what
+  // they held does not matter), PSNR is over the valid pixels (psnr_u8_masked), SSIM is
+  // 1 - (1 - SSIM of the images) / (valid fraction) (the SSIM deficit per valid pixel: a window
+  // wholly inside the missing pixels has SSIM 1, one across their edge counts), and LPIPS is of
+  // the filled images.
   double psnr = 0, ssim = 0;
   double lpips = -1;       // < 0: not computed (no weights)
   // Views with a mask (DatasetView::mask; < 0 otherwise): PSNR over the subject only (squared

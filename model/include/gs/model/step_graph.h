@@ -102,6 +102,11 @@ struct StepWorkspace : NeuralGaussianBuffers<T> {
   // Profiling: when set, decode_view and step_forward_backward add each stage's wall time here
   // (gs/stage_times.h; the renderer's stages are the backend's). Null: one branch per stage.
   StageTimes* stage_times = nullptr;
+  // Set by the caller for one step: which pixels of the target exist ([H, W] at the step's size,
+  // nonzero: yes; io::DatasetView::valid). Null: all do. step_forward_backward drops the others
+  // from the loss (see there).
+  const uint8_t* valid_pixels = nullptr;
+  std::vector<T> target_filled;  // [H, W, 3] the target with the render in the missing pixels (valid_pixels only)
 
   // gradients = false: the forward buffers only (rendering and registration decode but never
   // differentiate the decoder), about a third of the bytes. visible / gaussians: the plan for the
@@ -387,7 +392,38 @@ size_t decode_view(Backend& be, const ModelParamsT<T>& p, const Camera& cam, Ste
   return N;
 }
 
-// Runs the graph forward and, if grads != nullptr, backward. target: [H, W, 3] in [0, 1].
+// Drops the pixels ws.valid_pixels marks missing from the loss: the loss runs on a target that
+// holds the render itself there (their L1 terms are 0, and an SSIM window wholly inside them is 1),
+// their cotangents are zeroed, and the loss becomes the mean over the valid pixels: the others'
+// gradients and l1 scale by all / valid pixels, and 1 - ssim too (so ssim is the mean over the
+// valid pixels when the missing ones' SSIM is 1; windows straddling the edge see the render in
+// place of the missing target). All missing: no gradient, l1 = 0, ssim = 1.
+namespace detail {
+template <class T>
+const T* fill_missing_target(const T* target, const T* rgb, const uint8_t* valid, size_t pixels, std::vector<T>* filled,
+                             size_t* valid_count) {
+  if (filled->size() < 3 * pixels) filled->assign(3 * pixels, T(0));
+  size_t count = 0;
+  for (size_t p = 0; p < pixels; ++p) {
+    const T* from = valid[p] ? target + 3 * p : rgb + 3 * p;
+    count += valid[p] ? 1 : 0;
+    for (size_t c = 0; c < 3; ++c) (*filled)[3 * p + c] = from[c];
+  }
+  *valid_count = count;
+  return filled->data();
+}
+template <class T>
+void scale_to_valid(const uint8_t* valid, size_t pixels, size_t valid_count, T* v_rgb, double* l1, double* ssim) {
+  const double scale = valid_count ? double(pixels) / double(valid_count) : 0.0;
+  for (size_t p = 0; p < pixels; ++p)
+    for (size_t c = 0; c < 3; ++c) v_rgb[3 * p + c] = valid[p] ? T(v_rgb[3 * p + c] * scale) : T(0);
+  *l1 *= scale;
+  *ssim = 1 - (1 - *ssim) * scale;
+}
+}  // namespace detail
+
+// Runs the graph forward and, if grads != nullptr, backward. target: [H, W, 3] in [0, 1]; pixels
+// ws.valid_pixels marks missing are dropped from the loss (detail::fill_missing_target).
 template <class T, class Backend>
 Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera& cam, const T* target,
                              const StepConfig& cfg, StepWorkspace<T>& ws, ModelGradsT<T>* grads, StepResult* out) {
@@ -406,7 +442,13 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   GS_RETURN_IF_ERROR(be.render_fwd(cam, ws.ng, ws.rgb.data()));
   StageClock clock(ws.stage_times);  // after the renderer's own stages
   double l1 = 0, ssim = 0;
-  be.loss_bwd(W, H, ws.rgb.data(), target, ws.v_rgb.data(), &l1, &ssim);
+  const size_t pixels = size_t(W) * size_t(H);
+  size_t valid_count = pixels;
+  const T* loss_target =
+      ws.valid_pixels ? detail::fill_missing_target(target, ws.rgb.data(), ws.valid_pixels, pixels, &ws.target_filled, &valid_count)
+                      : target;
+  be.loss_bwd(W, H, ws.rgb.data(), loss_target, ws.v_rgb.data(), &l1, &ssim);
+  if (ws.valid_pixels) detail::scale_to_valid(ws.valid_pixels, pixels, valid_count, ws.v_rgb.data(), &l1, &ssim);
   out->l1 = l1;
   out->ssim = ssim;
   out->visible_anchors = V;

@@ -130,6 +130,9 @@ class Trainer {
   const std::vector<Camera>& cameras() const;
   // 1 for each training view still held back (TrainOptions::held_back_views).
   const std::vector<uint8_t>& held_back() const;
+  // 1 for each training view a registration released at a new pose (a repaired view); a released
+  // view without it was confirmed at its given pose.
+  const std::vector<uint8_t>& repaired() const;
   // Resolution divisor used at a 1-based iteration (coarse to fine).
   int downscale_at(int iteration) const;
 

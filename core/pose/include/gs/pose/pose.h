@@ -35,6 +35,8 @@ void left_difference(const Pose& from, const Pose& to, double xi[6]);
 // clamp (1 - 1e-7) floors every error at 0.0256 deg, too coarse for sub-0.1 deg registration.
 // pose_errors uses the same formula.
 double rotation_error_deg(const Pose& a, const Pose& b);
+// Distance between the camera centres of two poses (world units).
+double centre_distance(const Pose& a, const Pose& b);
 // The error of a relative orientation: the angle between R_ta R_tb^T (truth) and R_ea R_eb^T
 // (estimate), degrees. No global alignment changes it (a Sim(3) fitted on camera centres can leave
 // a tilt when the centres lie near a line or plane).
