@@ -141,7 +141,8 @@ struct Trainer::Impl {
   // (Adam state reset) and joins training. Returns how many joined. Several starts per view: its
   // own pose, the poses of the trained views next to it in capture order (by name) and of those
   // whose photos look most like it (descriptors); the converged result with the lowest residual wins.
-  // A view the registration from its own pose confirms (kConfirmDeg) rejoins at its given pose.
+  // A view moves only when a converged pose away from the given one fits clearly better
+  // (kRepairRmseRatio); else it rejoins at its given pose if the registration from it converged.
   // Views repaired (moved) by an earlier pass are registered again from their pose (the model is better
   // now) and keep the result when it converges to a lower residual.
   Status register_held(int it, int* released);
@@ -150,6 +151,9 @@ struct Trainer::Impl {
   // A held view whose registration from its own pose converges within these of it is confirmed
   // at that pose (degrees; fraction of the scene extent): it rejoins unchanged.
   static constexpr double kConfirmDeg = 1.0, kConfirmExtent = 0.01;
+  // A held view moves to a registered pose only when that pose's RMSE is below this fraction of
+  // the RMSE at its given pose (see register_held).
+  static constexpr double kRepairRmseRatio = 0.7;
   int held_starts(size_t v, Pose* starts) const;
   void describe_photos();  // fills descriptors
   // Target at resolution divisor s (s x s block means, matching scaled_camera), composited on bg;
