@@ -5,12 +5,13 @@
 // <dataset>/images/*.png and <dataset>/sparse/0/{cameras,images,points3D}.bin. Everything COLMAP
 // prints goes to a log file; progress is reported per stage.
 //
-// COLMAP 3.8 (Debian 12) cannot repeat a reconstruction (docs/CAPTURE.md, "Repeatable SfM"): its
-// CPU SIFT leaves a few descriptors uninitialised and its matcher's kd-trees draw from the C
-// library's rand(), which its worker threads reseed at moments that depend on scheduling, even on
-// one thread. The mapper alone repeats exactly on one database and seed. So after mapping, a
-// consistency check maps the same database again with other seeds and compares every view's pose
-// after the best Sim(3): views the reconstructions disagree on are reported as suspect.
+// COLMAP 3.8 (Debian 12) cannot repeat a reconstruction, whatever its seed and thread options
+// (docs/CAPTURE.md, "Repeatable SfM"): its CPU SIFT leaves a few descriptors uninitialised, and its
+// matcher's FLANN kd-trees are shuffled from std::random_device and split by rand(), which COLMAP
+// reseeds from its verifier thread mid-matching. The mapper alone repeats exactly on one database
+// and seed. So after mapping, a consistency check maps the same database again with other seeds
+// and compares every view's pose after a robust Sim(3): views the reconstructions disagree on are
+// reported as suspect.
 #pragma once
 
 #include <functional>
