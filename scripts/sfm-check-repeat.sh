@@ -31,7 +31,8 @@ fi
 # The truth under the names ingest gives the frames (frame_NNNNNN.png, NNNNNN: the image's place in
 # name order).
 mkdir -p "$work/truth/sparse/0"
-cp "$work/scene/sparse/0/cameras.txt" "$work/scene/sparse/0/points3D.txt" "$work/truth/sparse/0/"
+cp "$work/scene/sparse/0/cameras.txt" "$work/truth/sparse/0/"
+echo "# no points: only the poses are compared" >"$work/truth/sparse/0/points3D.txt"
 python3 - "$work/scene/sparse/0/images.txt" "$work/truth/sparse/0/images.txt" "$images" <<'PY'
 import os, sys
 lines = [l.rstrip("\n") for l in open(sys.argv[1])]
