@@ -41,6 +41,15 @@ void add_ingest_options(CLI::App* sub, std::string* out_dir, gs::capture::Ingest
       ->capture_default_str()
       ->check(CLI::Range(0, 16384));
   sub->add_option("--threads", o->colmap.threads, "COLMAP threads (0: all)")->capture_default_str()->check(CLI::Range(0, 4096));
+  sub->add_option("--sfm-check-runs", o->colmap.check_runs,
+                  "Consistency check of COLMAP's reconstruction: map the same matches again with this many other seeds and "
+                  "flag the views whose poses disagree (ingest.json colmap.consistency; 0: no check)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 10));
+  sub->add_option("--suspect-deg", o->colmap.suspect_rotation_deg,
+                  "Consistency check: a view whose rotation differs by more than this (degrees) between reconstructions is suspect")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 180.0));
   sub->add_flag("--force", o->force, "Replace an existing dataset in --out");
   sub->add_flag("--keep-work", o->keep_work, "Keep OUT/work (raw frames, COLMAP database and models)");
 }
@@ -54,6 +63,13 @@ void print_ingest_summary(const gs::capture::IngestReport& r, const std::string&
   std::printf("hbgs: %d frames analysed, %d blurred, %d kept; COLMAP registered %d of %d (%d points); %.1f s\n",
               r.select.total, r.select.blurred, r.select.kept, r.colmap.registered, r.colmap.images, r.colmap.points,
               seconds);
+  const gs::capture::SfmConsistency& c = r.colmap.consistency;
+  if (c.suspect > 0) {
+    std::printf("  %d suspect view(s): COLMAP's reconstructions with other seeds place them differently (ingest.json colmap.consistency):",
+                c.suspect);
+    for (const std::string& name : c.suspect_names()) std::printf(" %s", name.c_str());
+    std::printf("\n");
+  }
   std::printf("  train with: hbgs train %s --out RUN\n", out.c_str());
 }
 

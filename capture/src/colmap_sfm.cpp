@@ -5,15 +5,21 @@
 #include "gs/capture/colmap_sfm.h"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
 #include <deque>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <system_error>
 #include <vector>
 
 #include "gs/io/colmap.h"
+#include "gs/platform/clock.h"
 #include "gs/platform/file.h"
 #include "gs/platform/process.h"
+#include "gs/pose/pose.h"
 
 namespace gs::capture {
 namespace fs = std::filesystem;
@@ -58,17 +64,184 @@ Status run_stage(const std::vector<std::string>& argv, const std::string& stage,
 std::string thread_arg(int threads) { return std::to_string(threads > 0 ? threads : -1); }
 
 // COLMAP's seed for its random sampling (RANSAC, initial pair trials), given explicitly so a run does
-// not depend on the default of whichever COLMAP version is installed (Debian 12's 3.8: 0). It does
-// not make a run reproducible with 3.8. Measured on the built-in scene (35 views of 256x192): the
-// mapper alone gives identical poses run after run on one database (1 or 2 threads), but feature
-// extraction writes a few different descriptors every run even on one thread (3 of 29760, bytes
-// off by up to 255: stray data, not rounding), and exhaustive matching on one and the same database,
-// one thread, gives different matches for a third of the image pairs (193 of 595). So thread
-// counts and the seed cannot pin COLMAP's result down; callers that need a sound reconstruction
-// must check it themselves (issue 26: the train job does not yet retry a suspect reconstruction).
+// not depend on the default of whichever COLMAP version is installed (Debian 12's 3.8: 0). With it
+// the mapper repeats exactly on one database (byte-identical images.bin on 1 or 2 threads), but
+// extraction and matching do not repeat, on any thread count: see the header and docs/CAPTURE.md.
 constexpr const char* kColmapSeed = "0";
 
+// Camera centres of two reconstructions agree within this fraction of the scene radius when both
+// are sound (measured on the built-in scene: at most 2.8 % after the Sim(3)); the alignment of a
+// check run is fitted on the views that agree this well.
+constexpr double kAlignTolerance = 0.05;
+
+// The largest reconstruction under `sparse` (COLMAP writes one numbered model per connected
+// reconstruction): its folder, or "" when there is none. *models counts the readable ones.
+std::string largest_model(const std::string& sparse, int* models, io::ColmapModel* model) {
+  std::error_code ec;
+  std::string best;
+  size_t best_images = 0;
+  std::vector<fs::path> dirs;
+  for (const fs::directory_entry& e : fs::directory_iterator(sparse, ec))
+    if (e.is_directory(ec)) dirs.push_back(e.path());
+  std::sort(dirs.begin(), dirs.end());  // a tie goes to the lowest number, whatever the listing order
+  for (const fs::path& d : dirs) {
+    Expected<io::ColmapModel> m = io::read_colmap_model(d.string());
+    if (!m.ok()) continue;
+    if (models != nullptr) ++*models;
+    if (m->images.size() > best_images) {
+      best_images = m->images.size();
+      best = d.string();
+      if (model != nullptr) *model = std::move(m).value();
+    }
+  }
+  return best;
+}
+
+std::vector<std::string> mapper_args(const std::string& colmap, const std::string& db, const std::string& frames_dir,
+                                     const std::string& out, const std::string& seed, const ColmapOptions& o) {
+  std::vector<std::string> map = {colmap, "mapper", "--database_path", db, "--image_path", frames_dir, "--output_path",
+                                  out, "--random_seed", seed, "--Mapper.num_threads", thread_arg(o.threads)};
+  if (o.permissive_registration)
+    map.insert(map.end(), {"--Mapper.abs_pose_min_num_inliers", "12", "--Mapper.abs_pose_min_inlier_ratio", "0.1"});
+  if (!o.camera_params.empty())
+    map.insert(map.end(), {"--Mapper.ba_refine_focal_length", "0", "--Mapper.ba_refine_principal_point", "0",
+                           "--Mapper.ba_refine_extra_params", "0"});
+  return map;
+}
+
+double distance(const double a[3], const double b[3]) {
+  return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+// How many of the n pairs y ~ T(x) agree within `tolerance`; *weight gets 1 for those, 0 for the others.
+size_t count_inliers(const pose::Sim3& T, const double* x, const double* y, size_t n, double tolerance, std::vector<double>* weight) {
+  size_t count = 0;
+  weight->assign(n, 0.0);
+  for (size_t i = 0; i < n; ++i) {
+    double m[3];
+    pose::transform_point(T, x + 3 * i, m);
+    if (distance(m, y + 3 * i) <= tolerance) (*weight)[i] = 1, ++count;
+  }
+  return count;
+}
+
+// y ~ T(x) over camera centres, robust to up to half of the pairs being anywhere (a corrupted
+// reconstruction can misplace several views together, which tilts a trimmed least-squares fit):
+// the Sim(3) of the 3-view subset that the most pairs agree with (within `tolerance`), refitted
+// on those pairs twice. Subsets: all of them up to 20 views, else 600 drawn by a fixed sequence,
+// so the result does not change from run to run. False when no subset gives a Sim(3).
+bool align_centres(const std::vector<double>& x, const std::vector<double>& y, double tolerance, pose::Sim3* out) {
+  const size_t n = x.size() / 3;
+  if (n < 3) return false;
+  std::vector<std::array<size_t, 3>> subsets;
+  if (n <= 20) {
+    for (size_t a = 0; a < n; ++a)
+      for (size_t b = a + 1; b < n; ++b)
+        for (size_t c = b + 1; c < n; ++c) subsets.push_back({a, b, c});
+  } else {
+    uint64_t state = 0x9E3779B97F4A7C15ull;
+    auto next = [&] {
+      state = state * 6364136223846793005ull + 1442695040888963407ull;
+      return size_t((state >> 33) % n);
+    };
+    while (subsets.size() < 600) {
+      const std::array<size_t, 3> s = {next(), next(), next()};
+      if (s[0] != s[1] && s[1] != s[2] && s[0] != s[2]) subsets.push_back(s);
+    }
+  }
+  size_t best = 0;
+  std::vector<double> weight;
+  for (const std::array<size_t, 3>& s : subsets) {
+    double xs[9], ys[9];
+    for (int k = 0; k < 3; ++k)
+      for (int d = 0; d < 3; ++d) xs[3 * k + d] = x[3 * s[k] + d], ys[3 * k + d] = y[3 * s[k] + d];
+    pose::Sim3 T;
+    if (!pose::fit_sim3(xs, ys, nullptr, 3, &T)) continue;
+    const size_t agree = count_inliers(T, x.data(), y.data(), n, tolerance, &weight);
+    if (agree > best) best = agree, *out = T;
+  }
+  if (best < 3) return false;
+  for (int round = 0; round < 2; ++round) {
+    count_inliers(*out, x.data(), y.data(), n, tolerance, &weight);
+    pose::Sim3 refined;
+    if (!pose::fit_sim3(x.data(), y.data(), weight.data(), n, &refined)) break;
+    *out = refined;
+  }
+  return true;
+}
+
+double median_of(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + long(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
 }  // namespace
+
+std::vector<std::string> SfmConsistency::suspect_names() const {
+  std::vector<std::string> out;
+  for (const ViewAgreement& v : views)
+    if (v.suspect) out.push_back(v.name);
+  return out;
+}
+
+SfmConsistency compare_reconstructions(const io::ColmapModel& chosen, const std::vector<io::ColmapModel>& checks,
+                                       double suspect_rotation_deg, double suspect_centre_fraction) {
+  SfmConsistency c;
+  c.check_runs = int(checks.size());
+  std::map<std::string, size_t> index;  // name -> row of c.views
+  for (const io::ColmapImage& im : chosen.images) index.emplace(im.name, 0);
+  for (auto& [name, row] : index) {
+    row = c.views.size();
+    c.views.push_back(ViewAgreement{name});
+  }
+  std::vector<Pose> poses(c.views.size());
+  for (const io::ColmapImage& im : chosen.images) poses[index[im.name]] = io::pose_from_colmap(im.qvec, im.tvec);
+  double scene_centre[3], radius = 1;
+  pose::scene_frame(poses.data(), poses.size(), scene_centre, &radius);
+
+  for (const io::ColmapModel& check : checks) {
+    std::vector<size_t> rows;
+    std::vector<Pose> other;
+    std::vector<double> x, y;  // centres: check run, chosen
+    for (const io::ColmapImage& im : check.images) {
+      auto it = index.find(im.name);
+      if (it == index.end()) continue;
+      rows.push_back(it->second);
+      other.push_back(io::pose_from_colmap(im.qvec, im.tvec));
+      double a[3], b[3];
+      pose::centre(other.back(), a);
+      pose::centre(poses[it->second], b);
+      x.insert(x.end(), a, a + 3);
+      y.insert(y.end(), b, b + 3);
+    }
+    pose::Sim3 to_chosen;
+    if (!align_centres(x, y, kAlignTolerance * radius, &to_chosen)) continue;
+    ++c.aligned_runs;
+    for (size_t k = 0; k < rows.size(); ++k) {
+      ViewAgreement& v = c.views[rows[k]];
+      const Pose aligned = pose::transform_pose(to_chosen, other[k]);
+      const double rot = pose::rotation_error_deg(aligned, poses[rows[k]]);
+      double a[3], b[3];
+      pose::centre(aligned, a);
+      pose::centre(poses[rows[k]], b);
+      const double centre = distance(a, b) / radius;
+      ++v.check_runs;
+      v.rotation_deg = std::max(v.rotation_deg, rot);
+      v.centre_fraction = std::max(v.centre_fraction, centre);
+      if (rot > suspect_rotation_deg || centre > suspect_centre_fraction) ++v.disagreeing;
+    }
+  }
+  std::vector<double> rotations;
+  for (ViewAgreement& v : c.views) {
+    v.suspect = v.disagreeing > 0 && 2 * v.disagreeing >= v.check_runs;
+    c.suspect += v.suspect;
+    if (v.check_runs > 0) rotations.push_back(v.rotation_deg);
+    c.rotation_max_deg = std::max(c.rotation_max_deg, v.rotation_deg);
+  }
+  c.rotation_median_deg = median_of(rotations);
+  return c;
+}
 
 Expected<Matcher> parse_matcher(const std::string& name) {
   if (name == "sequential") return Matcher::kSequential;
@@ -127,15 +300,8 @@ Status run_colmap_reconstruction(const std::string& frames_dir, const std::strin
 
   int registered_so_far = 0;
   if (progress) progress("[3/4] COLMAP mapping");
-  std::vector<std::string> map = {colmap, "mapper", "--database_path", db, "--image_path", frames_dir, "--output_path",
-                                  sparse, "--random_seed", kColmapSeed, "--Mapper.num_threads", thread_arg(o.threads)};
-  if (o.permissive_registration)
-    map.insert(map.end(), {"--Mapper.abs_pose_min_num_inliers", "12", "--Mapper.abs_pose_min_inlier_ratio", "0.1"});
-  if (fixed)
-    map.insert(map.end(), {"--Mapper.ba_refine_focal_length", "0", "--Mapper.ba_refine_principal_point", "0",
-                           "--Mapper.ba_refine_extra_params", "0"});
   GS_RETURN_IF_ERROR(run_stage(
-      map,
+      mapper_args(colmap, db, frames_dir, sparse, kColmapSeed, o),
       "mapping", log_path, progress,
       [&](const std::string& l) {
         // COLMAP prints this for every registration attempt, including retries after a failure.
@@ -144,29 +310,54 @@ Status run_colmap_reconstruction(const std::string& frames_dir, const std::strin
       },
       &rep.seconds_mapping));
 
-  // COLMAP writes one numbered model per connected reconstruction; keep the largest.
-  std::string best_model;
-  size_t best_images = 0;
-  for (const fs::directory_entry& e : fs::directory_iterator(sparse, ec)) {
-    if (!e.is_directory(ec)) continue;
-    Expected<io::ColmapModel> m = io::read_colmap_model(e.path().string());
-    if (!m.ok()) continue;
-    ++rep.models;
-    if (m->images.size() > best_images) {
-      best_images = m->images.size();
-      best_model = e.path().string();
-      rep.points = int(m->points.size());
-    }
-  }
-  rep.registered = int(best_images);
-  if (report != nullptr) *report = rep;
+  io::ColmapModel chosen;
+  const std::string best_model = largest_model(sparse, &rep.models, &chosen);
+  rep.registered = int(chosen.images.size());
+  rep.points = int(chosen.points.size());
   const int needed = std::max(o.min_registered, int(o.min_registered_fraction * rep.images + 0.999));
-  if (rep.registered < needed)
+  if (rep.registered < needed) {
+    if (report != nullptr) *report = rep;
     return Status(StatusCode::kInternal,
                   "COLMAP registered only " + std::to_string(rep.registered) + " of " + std::to_string(rep.images) +
                       " frames (" + std::to_string(rep.models) + " reconstruction(s); at least " +
                       std::to_string(needed) +
                       " needed). The frames may be too blurred, too similar or lack texture; see " + log_path);
+  }
+
+  // The consistency check: the same database mapped again with other seeds.
+  if (o.check_runs > 0) {
+    const double t0 = platform::now_seconds();
+    if (progress)
+      progress("      consistency check: mapping again with " + std::to_string(o.check_runs) + " other seed(s)");
+    std::vector<io::ColmapModel> checks;
+    for (int seed = 1; seed <= o.check_runs; ++seed) {
+      const std::string out = work_dir + "/sparse_check" + std::to_string(seed);
+      fs::remove_all(out, ec);
+      GS_RETURN_IF_ERROR(platform::make_dirs(out));
+      double seconds = 0;
+      GS_RETURN_IF_ERROR(run_stage(mapper_args(colmap, db, frames_dir, out, std::to_string(seed), o),
+                                   "check mapping (seed " + std::to_string(seed) + ")", log_path, {}, {}, &seconds));
+      io::ColmapModel m;
+      if (!largest_model(out, nullptr, &m).empty()) checks.push_back(std::move(m));
+    }
+    rep.consistency = compare_reconstructions(chosen, checks, o.suspect_rotation_deg, o.suspect_centre_fraction);
+    rep.consistency.check_runs = o.check_runs;  // a run that reconstructed nothing counts too
+    rep.consistency.seconds = platform::now_seconds() - t0;
+    if (progress) {
+      const SfmConsistency& c = rep.consistency;
+      char line[256];
+      std::snprintf(line, sizeof line, "      consistency check: %d suspect view(s) of %d; the runs agree to %.2f deg (median), %.2f (max) in %.0f s",
+                    c.suspect, rep.registered, c.rotation_median_deg, c.rotation_max_deg, c.seconds);
+      progress(line);
+      for (const ViewAgreement& v : c.views) {
+        if (!v.suspect) continue;
+        std::snprintf(line, sizeof line, "        suspect: %s, %.1f deg and %.1f %% of the radius apart in %d of %d check run(s)",
+                      v.name.c_str(), v.rotation_deg, 100 * v.centre_fraction, v.disagreeing, v.check_runs);
+        progress(line);
+      }
+    }
+  }
+  if (report != nullptr) *report = rep;
   *model_dir = best_model;
   return Status::Ok();
 }

@@ -66,6 +66,25 @@ Status for_each_frame(const SourceFactory& make_source, std::string* name,
   return status.ok() ? stopped : status;
 }
 
+// The SfM consistency check (colmap_sfm.h): the limits, the summary, every view's agreement and the
+// suspect views' names (what a view-repair step reads).
+nlohmann::json consistency_json(const SfmConsistency& c, const ColmapOptions& o) {
+  nlohmann::json views = nlohmann::json::array();
+  for (const ViewAgreement& v : c.views)
+    views.push_back({{"name", v.name}, {"check_runs", v.check_runs}, {"disagreeing", v.disagreeing},
+                     {"rotation_deg", v.rotation_deg}, {"centre_fraction", v.centre_fraction}, {"suspect", v.suspect}});
+  return {{"check_runs", c.check_runs},
+          {"aligned_runs", c.aligned_runs},
+          {"suspect_rotation_deg", o.suspect_rotation_deg},
+          {"suspect_centre_fraction", o.suspect_centre_fraction},
+          {"suspect", c.suspect},
+          {"suspect_views", c.suspect_names()},
+          {"rotation_median_deg", c.rotation_median_deg},
+          {"rotation_max_deg", c.rotation_max_deg},
+          {"seconds", c.seconds},
+          {"views", std::move(views)}};
+}
+
 nlohmann::json report_json(const IngestReport& r, const IngestOptions& o) {
   nlohmann::json j;
   j["source"] = r.source;
@@ -83,6 +102,7 @@ nlohmann::json report_json(const IngestReport& r, const IngestOptions& o) {
                               {"matching", r.colmap.seconds_matching},
                               {"mapping", r.colmap.seconds_mapping},
                               {"undistortion", r.colmap.seconds_undistort}}}};
+  j["colmap"]["consistency"] = consistency_json(r.colmap.consistency, o.colmap);
   j["seconds"] = {{"analyse", r.seconds_analyse}, {"write", r.seconds_write}, {"total", r.seconds_total}};
   return j;
 }

@@ -69,6 +69,15 @@ Status init_poses_by_sfm(const std::vector<const io::Image8*>& images, const std
   rep.registered = int(rec_poses.size());
   rep.registered_views.assign(cams->size(), 0);
   for (const auto& rp : rec_poses) rep.registered_views[rp.first] = 1;
+  rep.consistency = crep.consistency;
+  rep.suspect_views.assign(cams->size(), 0);
+  rep.disagreement_deg.assign(cams->size(), 0.0);
+  for (const ViewAgreement& v : crep.consistency.views) {
+    auto it = view_of.find(v.name);
+    if (it == view_of.end()) continue;
+    rep.suspect_views[it->second] = v.suspect;
+    rep.disagreement_deg[it->second] = v.rotation_deg;
+  }
   rep.colmap_points = int(model->points.size());
   pose::Sim3 frame;
   if (!pose::fit_sim3(c_rec.data(), c_given.data(), nullptr, rec_poses.size(), &frame))

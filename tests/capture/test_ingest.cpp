@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "gs/capture/capture_session.h"
 #include "gs/capture/ingest.h"
 #include "gs/io/colmap.h"
@@ -50,9 +52,10 @@ void write_frames(const std::string& dir) {
   }
 }
 
-// A COLMAP model over the given image names (poses on a line, a few points), as COLMAP's mapper
-// and undistorter would leave it.
-void write_model(const std::string& dir, const std::vector<std::string>& names, bool binary) {
+// A COLMAP model over the given image names (camera centres on a parabola, a few points), as
+// COLMAP's mapper and undistorter would leave it; the view named `turned` is turned 20 degrees
+// about the vertical (a corrupted reconstruction's misplaced view).
+void write_model(const std::string& dir, const std::vector<std::string>& names, bool binary, const std::string& turned = "") {
   gs::io::ColmapModel m;
   gs::io::ColmapCamera cam;
   cam.id = 1;
@@ -67,7 +70,16 @@ void write_model(const std::string& dir, const std::vector<std::string>& names, 
     im.camera_id = 1;
     im.name = names[i];
     im.tvec[0] = -0.1 * double(i);
+    im.tvec[1] = 0.02 * double(i) * double(i);
     im.tvec[2] = 4.0;
+    if (im.name == turned) {  // the same centre (-R^T t), the rotation turned: t becomes R t
+      const double a = 20.0 * M_PI / 180;
+      im.qvec[0] = std::cos(a / 2);
+      im.qvec[2] = std::sin(a / 2);
+      const double x = im.tvec[0], z = im.tvec[2];
+      im.tvec[0] = std::cos(a) * x + std::sin(a) * z;
+      im.tvec[2] = -std::sin(a) * x + std::cos(a) * z;
+    }
     m.images.push_back(im);
   }
   for (int p = 0; p < 10; ++p) {
@@ -82,23 +94,29 @@ void write_model(const std::string& dir, const std::vector<std::string>& names, 
 }
 
 // Writes an executable stub `colmap`. mode: "ok" (every stage succeeds; the mapper registers the
-// first `registered` frames), "mapfail" (the mapper exits 3 after printing a reason).
+// first `registered` frames), "mapfail" (the mapper exits 3 after printing a reason), "seed1turns"
+// (as "ok", but the mapper with --random_seed 1 turns frame 3 by 20 degrees).
 std::string write_stub(const gs::test::TempDir& tmp, const std::string& mode, int registered) {
   const std::string model_txt = tmp / "stub_model_txt", model_bin = tmp / "stub_model_bin";
+  const std::string turned_txt = tmp / "stub_model_turned";
   std::vector<std::string> names;
   for (int i = 0; i < registered; ++i) names.push_back(gs::capture::frame_file_name(i));
   write_model(model_txt, names, false);
   write_model(model_bin, names, true);
+  write_model(turned_txt, names, false, gs::capture::frame_file_name(3));
   const std::string path = tmp / ("colmap_" + mode);
   std::ofstream f(path);
   f << "#!/bin/sh\n"
     << "cmd=$1; shift\n"
-    << "while [ $# -gt 0 ]; do case $1 in --output_path) out=$2;; --image_path) img=$2;; esac; shift; done\n"
+    << "while [ $# -gt 0 ]; do case $1 in --output_path) out=$2;; --image_path) img=$2;; --random_seed) seed=$2;; esac; shift; done\n"
     << "case $cmd in\n"
     << "  feature_extractor) echo \"Processed file [1/1]\"; exit 0;;\n"
     << "  sequential_matcher|exhaustive_matcher) echo matched; exit 0;;\n"
     << "  mapper)\n";
   if (mode == "mapfail") f << "    echo 'ERROR: not enough inliers'; exit 3;;\n";
+  else if (mode == "seed1turns")
+    f << "    model=" << model_txt << "; [ \"$seed\" = 1 ] && model=" << turned_txt << "\n"
+      << "    mkdir -p \"$out/0\" && cp \"$model\"/* \"$out/0/\"; exit 0;;\n";
   else f << "    mkdir -p \"$out/0\" && cp " << model_txt << "/* \"$out/0/\"; echo 'Registering image #1 (1)'; exit 0;;\n";
   f << "  image_undistorter)\n"
     << "    mkdir -p \"$out/images\" \"$out/sparse\" && cp \"$img\"/* \"$out/images/\" && cp " << model_bin
@@ -148,6 +166,47 @@ TEST_CASE("ingest with a stub COLMAP writes a dataset load_dataset reads") {
   CHECK(ds->views.size() == size_t(kFrames));
   // The kept frames are written under their source frame numbers.
   for (int64_t n : rep.kept_frames) CHECK(fs::exists(tmp / ("ds/images/" + gs::capture::frame_file_name(n))));
+}
+
+TEST_CASE("ingest: the consistency check maps again with other seeds and lists the views they disagree on in ingest.json") {
+  gs::test::TempDir tmp("gs_ingest");
+  write_frames(tmp / "frames");
+  const std::string name3 = gs::capture::frame_file_name(3);
+  for (int check_runs : {0, 1, 2, 3}) {
+    INFO(check_runs << " check run(s)");
+    IngestOptions o = options_with(write_stub(tmp, "seed1turns", 12), 12);
+    o.colmap.check_runs = check_runs;
+    o.force = true;
+    std::vector<std::string> lines;
+    gs::capture::IngestReport rep;
+    const gs::Status st = gs::capture::ingest([&] { return gs::capture::open_input(tmp / "frames"); }, tmp / "ds", o,
+                                              [&](const std::string& l) { lines.push_back(l); }, &rep);
+    REQUIRE_MESSAGE(st.ok(), st.to_string());
+    const gs::capture::SfmConsistency& c = rep.colmap.consistency;
+    CHECK(c.check_runs == check_runs);
+    CHECK(c.aligned_runs == check_runs);
+    // Seed 1 turns frame 3; seeds 2 and 3 agree with the chosen reconstruction. Suspect when at
+    // least half of the check runs disagree: with 1 or 2 runs, not with 3.
+    const bool flagged = check_runs == 1 || check_runs == 2;
+    CHECK(c.suspect_names() == (flagged ? std::vector<std::string>{name3} : std::vector<std::string>{}));
+    const nlohmann::json j = nlohmann::json::parse(gs::platform::read_text_file(tmp / "ds/ingest.json").value());
+    const nlohmann::json& cj = j["colmap"]["consistency"];
+    CHECK(cj["check_runs"] == check_runs);
+    CHECK(cj["suspect_views"] == (flagged ? nlohmann::json::array({name3}) : nlohmann::json::array()));
+    CHECK(cj["views"].size() == (check_runs > 0 ? 12u : 0u));
+    for (const nlohmann::json& v : cj["views"]) {
+      INFO(v.dump());
+      CHECK(v["check_runs"] == check_runs);
+      const bool turned = v["name"] == name3;
+      CHECK(v["disagreeing"] == (turned ? 1 : 0));
+      CHECK(v["rotation_deg"].get<double>() == doctest::Approx(turned ? 20.0 : 0.0).epsilon(1e-6));
+      CHECK(v["centre_fraction"].get<double>() < 1e-6);  // turned in place
+      CHECK(v["suspect"] == (turned && flagged));
+    }
+    bool said = false;
+    for (const std::string& l : lines) said = said || (l.find("suspect: " + name3) != std::string::npos);
+    CHECK(said == flagged);
+  }
 }
 
 TEST_CASE("ingest refuses an existing dataset unless forced and then replaces it whole") {

@@ -1,10 +1,12 @@
 // SPDX-License-Identifier: MIT
 // Fault injection over the jobs' writes (gs::platform::inject_write_fault): for every k, the k-th
-// file write of a short training run and of a render (an ingest: test_fault_ingest.cpp) fails as a full disk (short write
-// or ENOSPC) or a failing disk (EIO). After each failure the output folder is at a consistent state
-// (a training run at its last commit: manifest, model, checkpoint and progress of one iteration, no
-// leftovers; a render leaves nothing of itself), and resuming or rerunning the command
-// finishes with exactly the output of an undisturbed run. Also: kill -9 at random moments, the run
+// file write of a short training run, a render, an export (every splat format, baked or converted),
+// a compact and a report page (an ingest: test_fault_ingest.cpp) fails as a full disk (short write
+// or ENOSPC) or a failing disk (EIO). After each failure the output is at a consistent state (a
+// training run at its last commit: manifest, model, checkpoint and progress of one iteration, no
+// leftovers; a render leaves nothing of itself; a single-file output keeps its previous content or
+// stays absent, with no temporary beside it), and resuming or rerunning the command finishes with
+// exactly the output of an undisturbed run. Also: kill -9 at random moments, the run
 // folder's lock, a checkpoint copied from another run, and --iterations below the checkpoint on resume.
 #include <signal.h>
 #include <sys/wait.h>
@@ -13,6 +15,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <random>
 #include <string>
 #include <thread>
@@ -21,7 +24,10 @@
 #include <doctest/doctest.h>
 #include <nlohmann/json.hpp>
 
+#include "gs/jobs/compact.h"
+#include "gs/jobs/export.h"
 #include "gs/jobs/render.h"
+#include "gs/jobs/report.h"
 #include "gs/jobs/run_folder.h"
 #include "gs/jobs/run_state.h"
 #include "gs/jobs/train.h"
@@ -39,6 +45,14 @@ const char* fault_name(WriteFault f) {
 }
 // The OS reason each fault must surface as, in the error message.
 const char* fault_reason(WriteFault f) { return f == WriteFault::kIoError ? "Input/output error" : "No space left on device"; }
+
+// Calls check(k, fault, context) for every write k of `writes` and every fault: the loop of each case.
+void for_each_write_fault(uint64_t writes, const std::string& what,
+                          const std::function<void(uint64_t, WriteFault, const std::string&)>& check) {
+  for (uint64_t k = 1; k <= writes; ++k)
+    for (WriteFault fault : kFaults)
+      check(k, fault, what + "write " + std::to_string(k) + " of " + std::to_string(writes) + " fails (" + fault_name(fault) + ")");
+}
 
 using gs::test::run;
 
@@ -89,6 +103,17 @@ gs::jobs::TrainRunOptions short_run(const std::string& out) {
   return o;
 }
 
+// A short training run, trained once per process: the model that renders, exports and compacts read.
+const std::string& trained_run() {
+  static const std::string path = [] {
+    const std::string r = (tmp_root() / "trained").string();
+    const gs::Status st = gs::jobs::train_run(short_run(r), nullptr, nullptr);
+    REQUIRE_MESSAGE(st.ok(), st.to_string());
+    return r;
+  }();
+  return path;
+}
+
 // Files whose names mark an interrupted write.
 std::vector<std::string> leftovers(const fs::path& dir) {
   std::vector<std::string> out;
@@ -135,44 +160,39 @@ TEST_CASE("fault injection: every write of a short training run fails once, the 
   check_run_consistent(ref, "reference run");
 
   int resumed = 0, rerun = 0;
-  for (uint64_t k = 1; k <= writes; ++k) {
-    for (WriteFault fault : kFaults) {
-      const std::string context = "write " + std::to_string(k) + " of " + std::to_string(writes) + " fails (" + fault_name(fault) + ")";
-      const fs::path out = tmp_root() / "train_fault";
-      std::error_code ec;
-      fs::remove_all(out, ec);
-      gs::platform::inject_write_fault(k, fault);
-      st = gs::jobs::train_run(short_run(out.string()), nullptr, nullptr);
-      gs::platform::inject_write_fault(0, fault);
-      INFO(context);
-      REQUIRE_FALSE(st.ok());
-      CHECK_MESSAGE(st.message().find(fault_reason(fault)) != std::string::npos, st.to_string());
-      check_run_consistent(out, context);
-      // The same command again: --resume where the run recorded itself, else a plain rerun.
-      gs::jobs::TrainRunOptions again = short_run(out.string());
-      again.resume = fs::exists(out / gs::jobs::kRunJson);
-      (again.resume ? resumed : rerun) += 1;
-      st = gs::jobs::train_run(again, nullptr, nullptr);
-      REQUIRE_MESSAGE(st.ok(), st.to_string());
-      check_run_consistent(out, context + ", then finished");
-      CHECK(bytes_of(out / gs::jobs::kModelFile) == ref_model);
-      CHECK(bytes_of(out / gs::jobs::kCheckpointFile) == ref_ckpt);
-      const nlohmann::json progress = nlohmann::json::parse(bytes_of(out / gs::jobs::kProgressFile));
-      CHECK(progress["losses"] == ref_progress["losses"]);
-      CHECK(progress["psnr_rows"].size() == ref_progress["psnr_rows"].size());
-      CHECK(fs::exists(out / "model_4.hbgs"));
-    }
-  }
+  for_each_write_fault(writes, "", [&](uint64_t k, WriteFault fault, const std::string& context) {
+    const fs::path out = tmp_root() / "train_fault";
+    std::error_code ec;
+    fs::remove_all(out, ec);
+    gs::platform::inject_write_fault(k, fault);
+    st = gs::jobs::train_run(short_run(out.string()), nullptr, nullptr);
+    gs::platform::inject_write_fault(0, fault);
+    INFO(context);
+    REQUIRE_FALSE(st.ok());
+    CHECK_MESSAGE(st.message().find(fault_reason(fault)) != std::string::npos, st.to_string());
+    check_run_consistent(out, context);
+    // The same command again: --resume where the run recorded itself, else a plain rerun.
+    gs::jobs::TrainRunOptions again = short_run(out.string());
+    again.resume = fs::exists(out / gs::jobs::kRunJson);
+    (again.resume ? resumed : rerun) += 1;
+    st = gs::jobs::train_run(again, nullptr, nullptr);
+    REQUIRE_MESSAGE(st.ok(), st.to_string());
+    check_run_consistent(out, context + ", then finished");
+    CHECK(bytes_of(out / gs::jobs::kModelFile) == ref_model);
+    CHECK(bytes_of(out / gs::jobs::kCheckpointFile) == ref_ckpt);
+    const nlohmann::json progress = nlohmann::json::parse(bytes_of(out / gs::jobs::kProgressFile));
+    CHECK(progress["losses"] == ref_progress["losses"]);
+    CHECK(progress["psnr_rows"].size() == ref_progress["psnr_rows"].size());
+    CHECK(fs::exists(out / "model_4.hbgs"));
+  });
   MESSAGE((3 * writes) << " failures: " << resumed << " finished by --resume, " << rerun << " by rerunning");
   CHECK(resumed > 0);
 }
 
 TEST_CASE("fault injection: every write of a render fails once, nothing of it is left and a rerun gives the same images") {
-  const fs::path run_dir = tmp_root() / "render_model";
-  gs::Status st = gs::jobs::train_run(short_run(run_dir.string()), nullptr, nullptr);
-  REQUIRE_MESSAGE(st.ok(), st.to_string());
+  gs::Status st;
   // A trained model, and a dataset rendered from its SfM points: the two render paths.
-  for (const std::string& input : {run_dir.string(), scene()}) {
+  for (const std::string& input : {trained_run(), scene()}) {
     gs::jobs::RenderRunOptions ro;
     ro.input = input;
     ro.threads = 2;
@@ -186,25 +206,110 @@ TEST_CASE("fault injection: every write of a render fails once, nothing of it is
     const uint64_t writes = gs::platform::write_file_atomic_calls();
     MESSAGE("an undisturbed render of " << input << " writes " << writes << " files");
     REQUIRE(writes == ref.views.size() + 1);  // one PNG per view and render.json
-    for (uint64_t k = 1; k <= writes; ++k) {
-      for (WriteFault fault : kFaults) {
-        const std::string context = input + ": write " + std::to_string(k) + " of " + std::to_string(writes) + " fails (" + fault_name(fault) + ")";
-        INFO(context);
-        const fs::path out = tmp_root() / "render_fault";
-        fs::remove_all(out, ec);
-        gs::jobs::RenderRunOptions o = ro;
-        o.out = out.string();
-        gs::platform::inject_write_fault(k, fault);
-        st = gs::jobs::render_run(o, nullptr, nullptr);
-        gs::platform::inject_write_fault(0, fault);
-        REQUIRE_FALSE(st.ok());
-        CHECK_MESSAGE(st.message().find(fault_reason(fault)) != std::string::npos, st.to_string());
-        CHECK_FALSE(fs::exists(out));
-        st = gs::jobs::render_run(o, nullptr, nullptr);
-        REQUIRE_MESSAGE(st.ok(), st.to_string());
-        for (const gs::jobs::RenderedView& v : ref.views) CHECK(bytes_of(out / v.png) == bytes_of(fs::path(ro.out) / v.png));
-      }
+    for_each_write_fault(writes, input + ": ", [&](uint64_t k, WriteFault fault, const std::string& context) {
+      INFO(context);
+      const fs::path out = tmp_root() / "render_fault";
+      fs::remove_all(out, ec);
+      gs::jobs::RenderRunOptions o = ro;
+      o.out = out.string();
+      gs::platform::inject_write_fault(k, fault);
+      st = gs::jobs::render_run(o, nullptr, nullptr);
+      gs::platform::inject_write_fault(0, fault);
+      REQUIRE_FALSE(st.ok());
+      CHECK_MESSAGE(st.message().find(fault_reason(fault)) != std::string::npos, st.to_string());
+      CHECK_FALSE(fs::exists(out));
+      st = gs::jobs::render_run(o, nullptr, nullptr);
+      REQUIRE_MESSAGE(st.ok(), st.to_string());
+      for (const gs::jobs::RenderedView& v : ref.views) CHECK(bytes_of(out / v.png) == bytes_of(fs::path(ro.out) / v.png));
+    });
+  }
+}
+
+namespace {
+
+// A command writing the files `outputs` (in the order it writes them) through write_file_atomic.
+// Undisturbed it gives the reference bytes; then for every write and fault, starting once from no
+// outputs and once from older ones: the command fails naming the OS reason, the files written
+// before the failing one are complete, the failing one and those after keep their previous state
+// (absent, or the older bytes), no temporary is left beside them, and the same command again
+// writes exactly the reference bytes.
+void check_single_writes(const std::string& what, const std::vector<fs::path>& outputs, const std::function<gs::Status()>& command) {
+  auto set_previous = [&](bool older) {
+    for (const fs::path& p : outputs) {
+      std::error_code ec;
+      fs::remove(p, ec);
+      if (older) REQUIRE(gs::platform::write_file_atomic(p.string(), "an older " + p.filename().string()).ok());
     }
+  };
+  set_previous(false);
+  gs::platform::inject_write_fault(0, WriteFault::kNoSpace);
+  gs::Status st = command();
+  REQUIRE_MESSAGE(st.ok(), (what + ": " + st.to_string()));
+  const uint64_t writes = gs::platform::write_file_atomic_calls();
+  REQUIRE(writes == outputs.size());
+  std::vector<std::vector<uint8_t>> ref;
+  for (const fs::path& p : outputs) ref.push_back(bytes_of(p));
+  for_each_write_fault(writes, what + ": ", [&](uint64_t k, WriteFault fault, const std::string& context) {
+    for (bool older : {false, true}) {
+      INFO(context << (older ? ", over older outputs" : ", no outputs before"));
+      set_previous(older);
+      gs::platform::inject_write_fault(k, fault);
+      st = command();
+      gs::platform::inject_write_fault(0, fault);
+      REQUIRE_FALSE(st.ok());
+      CHECK_MESSAGE(st.message().find(fault_reason(fault)) != std::string::npos, st.to_string());
+      for (size_t i = 0; i < outputs.size(); ++i) {
+        CHECK(leftovers(outputs[i].parent_path()).empty());
+        if (i + 1 < k) CHECK(bytes_of(outputs[i]) == ref[i]);
+        else if (older) CHECK(gs::platform::read_text_file(outputs[i].string()).value() == "an older " + outputs[i].filename().string());
+        else CHECK_FALSE(fs::exists(outputs[i]));
+      }
+      st = command();
+      REQUIRE_MESSAGE(st.ok(), st.to_string());
+      for (size_t i = 0; i < outputs.size(); ++i) CHECK(bytes_of(outputs[i]) == ref[i]);
+    }
+  });
+}
+
+}  // namespace
+
+TEST_CASE("fault injection: every write of an export (each format, baked and converted), a compact and a report page fails once, the destination keeps its previous state and a rerun gives the same bytes") {
+  const fs::path dir = tmp_root() / "single_writes";
+  fs::create_directories(dir);
+  for (const char* name : {"model.ply", "model.compressed.ply", "model.splat", "model.spz"}) {
+    gs::jobs::ExportRunOptions o;
+    o.input = trained_run();
+    o.out = (dir / name).string();
+    o.distill_iterations = 5;  // the bake's both stages, briefly
+    o.evaluate = false;        // reads only
+    o.threads = 2;
+    check_single_writes(std::string("export to ") + name, {o.out}, [&] { return gs::jobs::export_run(o, nullptr); });
+  }
+  {  // A splat file converted to another format (here .spz version 3, the gzip one).
+    gs::jobs::ExportRunOptions o;
+    o.input = (dir / "model.ply").string();
+    o.out = (dir / "converted.spz").string();
+    o.write.spz.version = 3;
+    o.evaluate = false;
+    REQUIRE(fs::exists(o.input));
+    check_single_writes("conversion of model.ply to .spz", {o.out}, [&] { return gs::jobs::export_run(o, nullptr); });
+  }
+  {
+    gs::jobs::CompactRunOptions o;
+    o.input = trained_run();
+    o.out = (dir / "model.hbgc").string();
+    o.evaluate = false;
+    o.threads = 2;
+    check_single_writes("compact", {o.out}, [&] { return gs::jobs::compact_run(o, nullptr); });
+  }
+  {
+    gs::jobs::ReportRunOptions o;
+    o.run = trained_run();
+    o.out = (dir / "report.html").string();
+    o.distill_iterations = 5;
+    o.views = 1;
+    o.threads = 2;
+    check_single_writes("report page", {o.out}, [&] { return gs::jobs::report_run(o, nullptr); });
   }
 }
 

@@ -31,6 +31,12 @@ struct SfmPoseInitOptions {
 struct SfmPoseInitReport {
   int views = 0, registered = 0;
   std::vector<uint8_t> registered_views;  // [views] 1 where COLMAP registered the view (its pose was replaced)
+  // The SfM consistency check (colmap_sfm.h, ColmapOptions::check_runs) by view: 1 where it found the
+  // view suspect, and the largest rotation difference between the reconstructions (degrees; 0 for
+  // a view COLMAP did not register). consistency holds the rest (names are view_<index>.png).
+  std::vector<uint8_t> suspect_views;
+  std::vector<double> disagreement_deg;
+  SfmConsistency consistency;
   int colmap_points = 0;
   double centre_fit_rms = 0;   // RMS of the centre fit residuals, dataset units
   double icp_median_before = 0, icp_median_after = 0;  // median NN distance of COLMAP's points, dataset units
