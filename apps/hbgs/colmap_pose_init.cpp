@@ -68,6 +68,8 @@ class ColmapPoseInitializer final : public SfmPoseInitializer {
     SfmPoseInitResult r;
     for (const Camera& c : cams) r.poses.push_back(c.pose);
     r.registered = rep.registered_views;
+    r.suspect = rep.suspect_views;
+    r.disagreement_deg = rep.disagreement_deg;
     r.images = sfm_images->folder.empty() ? std::string("training images") : sfm_images->folder;
     r.image_width = cams[0].intr.width;
     r.image_height = cams[0].intr.height;

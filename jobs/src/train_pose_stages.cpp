@@ -97,12 +97,16 @@ Status TrainSession::Impl::init_by_sfm(const std::string& work_dir, const TrainP
                           std::to_string(train_views.size()) + " training views");
   set_train_poses(rep.poses);
   sfm_registered = rep.registered;
-  nlohmann::json unregistered = nlohmann::json::array();
-  for (size_t i = 0; i < sfm_registered.size(); ++i)
+  sfm_suspect = rep.suspect.size() == rep.registered.size() ? rep.suspect : std::vector<uint8_t>(rep.registered.size(), 0);
+  nlohmann::json unregistered = nlohmann::json::array(), doubted = nlohmann::json::array();
+  for (size_t i = 0; i < sfm_registered.size(); ++i) {
     if (!sfm_registered[i]) unregistered.push_back(train_names[i]);
+    if (sfm_suspect[i]) doubted.push_back(train_names[i]);
+  }
   const pose::PoseErrors e = errors(rep.poses, true);
   sfm_init = {{"seconds", rep.seconds},           {"registered", rep.registered_views},
               {"not_registered", unregistered},
+              {"suspect_by_consistency_check", doubted},
               {"images", rep.images},
               {"image_width", rep.image_width},  {"image_height", rep.image_height},
               {"views", rep.views},               {"colmap_points", rep.colmap_points},

@@ -277,23 +277,26 @@ Status TrainRun::start() {
 nlohmann::json TrainRun::held_back_json() const {
   // Why each view was held back at the start (a resumed run's session did not check again: its
   // lists are empty; still_held and repaired come from the checkpoint), and where those views are now.
-  nlohmann::json unregistered = nlohmann::json::array(), suspect = nlohmann::json::array();
+  nlohmann::json unregistered = nlohmann::json::array(), suspect = nlohmann::json::array(), sfm_doubted = nlohmann::json::array();
   nlohmann::json still = nlohmann::json::array(), repaired = nlohmann::json::array(), confirmed = nlohmann::json::array();
   const std::vector<uint8_t>& held = trainer_->held_back();
   const std::vector<uint8_t>& moved = trainer_->repaired();
   size_t at_start = 0;
   for (size_t i = 0; i < held.size(); ++i) {
     const bool unreg = i < d_->sfm_registered.size() && !d_->sfm_registered[i];
+    const bool doubted = i < d_->sfm_suspect.size() && d_->sfm_suspect[i];
     const bool susp = i < d_->suspect.size() && d_->suspect[i];
     if (unreg) unregistered.push_back(d_->train_names[i]);
+    if (doubted) sfm_doubted.push_back(d_->train_names[i]);
     if (susp) suspect.push_back(d_->train_names[i]);
-    if (unreg || susp) ++at_start;
+    if (unreg || doubted || susp) ++at_start;
     if (held[i]) still.push_back(d_->train_names[i]);
     else if (moved[i]) repaired.push_back(d_->train_names[i]);
-    else if (unreg || susp) confirmed.push_back(d_->train_names[i]);
+    else if (unreg || doubted || susp) confirmed.push_back(d_->train_names[i]);
   }
   return nlohmann::json{{"at_start", at_start},
                         {"not_registered_by_sfm", unregistered},
+                        {"doubted_by_sfm_check", sfm_doubted},
                         {"contradicted_by_points", suspect},
                         {"repaired", repaired},
                         {"confirmed_at_given_pose", confirmed},

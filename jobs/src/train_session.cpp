@@ -102,9 +102,12 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
     // resume the checkpoint says which are still held.
     if (!options.resume) {
       GS_RETURN_IF_ERROR(d.init_by_sfm(work_dir, say));
-      if (!d.sfm_registered.empty() && std::find(d.sfm_registered.begin(), d.sfm_registered.end(), uint8_t(0)) != d.sfm_registered.end()) {
-        resolved->train.held_back_views.assign(d.sfm_registered.size(), 0);
-        for (size_t i = 0; i < d.sfm_registered.size(); ++i) resolved->train.held_back_views[i] = d.sfm_registered[i] ? 0 : 1;
+      // Views SfM could not register, or that its consistency check doubts, are held back too.
+      if (!d.sfm_registered.empty()) {
+        std::vector<uint8_t>& held = resolved->train.held_back_views;
+        held.assign(d.sfm_registered.size(), 0);
+        for (size_t i = 0; i < d.sfm_registered.size(); ++i) held[i] = !d.sfm_registered[i] || d.sfm_suspect[i];
+        if (std::find(held.begin(), held.end(), uint8_t(1)) == held.end()) held.clear();
       }
     }
   }
@@ -123,7 +126,7 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
     for (size_t i = 0; i < held.size(); ++i) held[i] = held[i] || d.suspect[i];
     if (std::find(held.begin(), held.end(), uint8_t(0)) == held.end()) {
       say(text_event(TrainEvent::kNote, "every training view is suspect or unregistered: the view check holds none back"));
-      for (size_t i = 0; i < held.size(); ++i) held[i] = d.sfm_registered.empty() ? 0 : !d.sfm_registered[i];
+      for (size_t i = 0; i < held.size(); ++i) held[i] = d.sfm_registered.empty() ? 0 : !d.sfm_registered[i] || d.sfm_suspect[i];
     }
     if (std::find(held.begin(), held.end(), uint8_t(1)) == held.end()) held.clear();
   }

@@ -32,6 +32,7 @@ struct TrainSession::Impl {
   pose::PoseErrors input_errors;
   nlohmann::json sfm_init, point_alignment;  // stage reports for results.json
   std::vector<uint8_t> sfm_registered;       // [training views] 1 where SfM registered the view
+  std::vector<uint8_t> sfm_suspect;          // [training views] 1 where SfM's consistency check doubts it
   nlohmann::json view_check;                 // the point-agreement check's report for results.json
   std::vector<uint8_t> suspect;              // [training views] 1 where the points say the pose is wrong
   std::unique_ptr<platform::ThreadPool> pool;

@@ -156,6 +156,10 @@ struct SfmPoseInitRequest {
 struct SfmPoseInitResult {
   std::vector<Pose> poses;          // [views] the registered views' poses replaced, the others as given
   std::vector<uint8_t> registered;  // [views] 1 where SfM registered the view
+  // [views] 1 where SfM's consistency check found the view suspect (other mappings of the same
+  // matches place it elsewhere), and the largest rotation difference there (degrees); empty: no check.
+  std::vector<uint8_t> suspect;
+  std::vector<double> disagreement_deg;
   // The report (results.json "sfm_init"): which images COLMAP saw ("training images" or a folder)
   // and their size, the reconstruction, and the Sim(3) fit into the dataset's frame.
   std::string images;
