@@ -398,16 +398,26 @@ Status score_views_against_points(const float* xyz, const uint8_t* rgb, size_t n
   return Status::Ok();
 }
 
+TypicalAgreement typical_agreement(const std::vector<ViewPointAgreement>& scores) {
+  std::vector<double> agree, chance, visible;
+  for (const ViewPointAgreement& s : scores) agree.push_back(s.agree), chance.push_back(s.chance), visible.push_back(double(s.visible));
+  TypicalAgreement t;
+  if (scores.empty()) return t;
+  t.margin = median(agree) - median(chance);
+  t.points = median(visible);
+  return t;
+}
+
+bool is_suspect(const ViewPointAgreement& score, const TypicalAgreement& typical) {
+  return score.agree - score.chance < 0.25 * typical.margin || double(score.visible) < 0.25 * typical.points;
+}
+
 std::vector<uint8_t> suspect_views(const std::vector<ViewPointAgreement>& scores) {
   std::vector<uint8_t> flags(scores.size(), 0);
   if (scores.size() < 3) return flags;
-  std::vector<double> agree, chance, visible;
-  for (const ViewPointAgreement& s : scores) agree.push_back(s.agree), chance.push_back(s.chance), visible.push_back(double(s.visible));
-  const double a = median(agree), c = median(chance), seen = median(visible);
-  const double margin = a - c;
-  if (!(margin >= 0.1)) return flags;
-  for (size_t v = 0; v < scores.size(); ++v)
-    flags[v] = scores[v].agree - scores[v].chance < 0.25 * margin || double(scores[v].visible) < 0.25 * seen;
+  const TypicalAgreement typical = typical_agreement(scores);
+  if (!(typical.margin >= 0.1)) return flags;
+  for (size_t v = 0; v < scores.size(); ++v) flags[v] = is_suspect(scores[v], typical);
   return flags;
 }
 

@@ -313,7 +313,12 @@ Status Trainer::Impl::register_held(int it, int* released) {
     // 3-12 degrees improved the RMSE by 1-15 % and adopting them cost 0.5 dB. Such a view rejoins at
     // its given pose when the registration from it converged (the model agrees it fits there), and
     // stays held otherwise.
-    const bool repair = found && !near_start(best.pose) && best.final_rmse < kRepairRmseRatio * own.initial_rmse;
+    bool repair = found && !near_start(best.pose) && best.final_rmse < kRepairRmseRatio * own.initial_rmse;
+    if (repair && opt.accept_new_pose) {
+      Camera moved = view_cameras[v];
+      moved.pose = best.pose;
+      repair = opt.accept_new_pose(v, moved);
+    }
     if (!repair && !own.converged()) continue;
     held[v] = 0;
     ++*released;

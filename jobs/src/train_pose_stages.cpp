@@ -185,6 +185,7 @@ Status TrainSession::Impl::check_views(const TrainProgressFn& say) {
                                                       dataset.points_rgb.empty() ? nullptr : dataset.points_rgb.data(), npoints,
                                                       images, cams, defaults.huber, defaults.max_points, pool.get(), &scores));
   suspect = pose::suspect_views(scores);
+  typical_agreement = pose::typical_agreement(scores);
   nlohmann::json per_view = nlohmann::json::object(), flagged = nlohmann::json::array();
   std::vector<double> agree, chance;
   for (size_t i = 0; i < scores.size(); ++i) {
@@ -200,6 +201,19 @@ Status TrainSession::Impl::check_views(const TrainProgressFn& say) {
                                          (flagged.empty() ? std::string("no view contradicts them")
                                                           : std::to_string(flagged.size()) + " suspect (" + names + ")")));
   return Status::Ok();
+}
+
+bool TrainSession::Impl::points_accept(size_t v, const Camera& camera) const {
+  if (dataset.points_rgb.empty() || !(typical_agreement.margin >= 0.1)) return true;  // the points cannot tell
+  const io::DatasetView& view = *train_views[v];
+  const float black[3] = {0, 0, 0};
+  const io::Image8 photo = view.mask.empty() ? io::Image8{} : io::composite_rgb8(view.image, view.mask, black);
+  std::vector<pose::ViewPointAgreement> score;
+  const pose::PointAlignOptions defaults;
+  const Status st = pose::score_views_against_points(dataset.points_xyz.data(), dataset.points_rgb.data(),
+                                                     dataset.points_xyz.size() / 3, {view.mask.empty() ? &view.image : &photo},
+                                                     {camera}, defaults.huber, defaults.max_points, nullptr, &score);
+  return st.ok() && !score.empty() && !pose::is_suspect(score[0], typical_agreement);
 }
 
 }  // namespace gs::jobs

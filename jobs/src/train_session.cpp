@@ -119,8 +119,14 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
     if (points_meaningful) GS_RETURN_IF_ERROR(d.align_to_points(say));
     else say(text_event(TrainEvent::kNote, "point alignment skipped: the dataset's points are random (no point cloud)"));
   }
-  if (options.view_check && points_meaningful && !options.resume) {
+  if (options.view_check && points_meaningful) {
+    // On a resume the check runs again for its typical agreement (the held views come from the
+    // checkpoint): a held view still needs the points' consent to move.
     GS_RETURN_IF_ERROR(d.check_views(say));
+    Impl* state = &d;
+    resolved->train.accept_new_pose = [state](size_t v, const Camera& camera) { return state->points_accept(v, camera); };
+  }
+  if (options.view_check && points_meaningful && !options.resume) {
     std::vector<uint8_t>& held = resolved->train.held_back_views;
     if (held.empty()) held.assign(d.train_views.size(), 0);
     for (size_t i = 0; i < held.size(); ++i) held[i] = held[i] || d.suspect[i];

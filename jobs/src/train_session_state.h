@@ -15,6 +15,7 @@
 #include "gs/io/colmap.h"
 #include "gs/jobs/pose_truth.h"
 #include "gs/jobs/train.h"
+#include "gs/model/point_alignment.h"
 #include "gs/model/trainer.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
@@ -35,6 +36,7 @@ struct TrainSession::Impl {
   std::vector<uint8_t> sfm_suspect;          // [training views] 1 where SfM's consistency check doubts it
   nlohmann::json view_check;                 // the point-agreement check's report for results.json
   std::vector<uint8_t> suspect;              // [training views] 1 where the points say the pose is wrong
+  pose::TypicalAgreement typical_agreement;  // of the training views at their start poses
   std::unique_ptr<platform::ThreadPool> pool;
   const simd::KernelTable* kernels = nullptr;
   std::unique_ptr<model::Trainer> trainer;
@@ -64,6 +66,8 @@ struct TrainSession::Impl {
   // are held back from training: with pose optimisation until a registration against the model
   // places them (then they are repaired), without it for the whole run.
   Status check_views(const TrainProgressFn& say);
+  // The SfM points' verdict on training view v at another pose (TrainOptions::accept_new_pose).
+  bool points_accept(size_t v, const Camera& camera) const;
 };
 
 // The message when pose_init "sfm" needs an initialiser and none was given.

@@ -163,41 +163,34 @@ TEST_CASE("point alignment: moves within its precision are discarded and outlyin
 }
 
 TEST_CASE("view check: fox views placed 10-40 degrees wrong agree with the points at chance level (shared data)") {
-  const std::string root = std::string(GS_SOURCE_DIR) + "/../shared/data/fox";
-  if (!std::filesystem::exists(root + "/sparse/0")) {
-    MESSAGE("skipped: " << root << "/sparse/0 is absent");
+  const FoxViews fox;
+  if (!fox.ds.ok()) {
+    MESSAGE("skipped: ../shared/data/fox is absent (" << fox.ds.status().to_string() << ")");
     return;
   }
-  Expected<io::Dataset> ds = io::load_dataset(root);
-  REQUIRE_MESSAGE(ds.ok(), ds.status().to_string());
-  std::vector<Camera> truth;
-  std::vector<const io::Image8*> images;
-  for (const io::DatasetView& v : ds->views)
-    if (!v.is_test) truth.push_back(v.camera), images.push_back(&v.image);
-  std::vector<Pose> poses;
-  for (const Camera& c : truth) poses.push_back(c.pose);
-  double centre[3], radius = 0;
-  pose::scene_frame(poses.data(), poses.size(), centre, &radius);
   platform::ThreadPool pool(2);
-  const size_t n = ds->points_xyz.size() / 3;
+  auto score = [&](const std::vector<Camera>& cams, std::vector<ViewPointAgreement>* scores) {
+    return score_views_against_points(fox.ds->points_xyz.data(), fox.ds->points_rgb.data(), fox.ds->points_xyz.size() / 3,
+                                      fox.images, cams, 0.1, 20000, &pool, scores);
+  };
   // COLMAP's own poses: no view is suspect (the points agree with every view well above chance).
   std::vector<ViewPointAgreement> scores;
-  REQUIRE(score_views_against_points(ds->points_xyz.data(), ds->points_rgb.data(), n, images, truth, 0.1, 20000, &pool, &scores).ok());
-  REQUIRE(scores.size() == truth.size());
+  REQUIRE(score(fox.cameras, &scores).ok());
+  REQUIRE(scores.size() == fox.cameras.size());
   const std::vector<uint8_t> clean = suspect_views(scores);
   CHECK(std::count(clean.begin(), clean.end(), uint8_t(1)) == 0);
   // Three views turned 10-40 degrees about their centres (three seeds): exactly those are suspect.
   for (uint64_t seed : {1, 2, 3}) {
     PoseNoise noise;
     REQUIRE(parse_pose_noise("rot:10-40,views:3,seed:" + std::to_string(seed), &noise).ok());
-    std::vector<Pose> moved = poses;
-    perturb_poses(noise, centre, radius, moved.data(), moved.size());
-    std::vector<Camera> cams = truth;
+    std::vector<Pose> moved = fox.truth;
+    perturb_poses(noise, fox.centre, fox.radius, moved.data(), moved.size());
+    std::vector<Camera> cams = fox.cameras;
     for (size_t i = 0; i < cams.size(); ++i) cams[i].pose = moved[i];
-    REQUIRE(score_views_against_points(ds->points_xyz.data(), ds->points_rgb.data(), n, images, cams, 0.1, 20000, &pool, &scores).ok());
+    REQUIRE(score(cams, &scores).ok());
     const std::vector<uint8_t> flags = suspect_views(scores);
     for (size_t i = 0; i < cams.size(); ++i) {
-      const double off = rotation_error_deg(cams[i].pose, truth[i].pose);
+      const double off = rotation_error_deg(cams[i].pose, fox.truth[i]);
       INFO("seed " << seed << " view " << i << ": " << off << " degrees off, agree " << scores[i].agree << ", chance "
                    << scores[i].chance << ", points " << scores[i].visible);
       CHECK(bool(flags[i]) == (off > 1));

@@ -542,22 +542,34 @@ TEST_CASE("trainer: a zero initial pose rate keeps every pose finite through the
   }
 }
 
+// A copy of the test scene whose view pointers point into the copy (its poses can be changed).
+test::TrainScene scene_copy() {
+  test::TrainScene c = scene();
+  c.ptrs.clear();
+  for (auto& v : c.views) c.ptrs.push_back(&v);
+  return c;
+}
+
+// Options that hold view 3 back and register it every `every` iterations in [from, until].
+TrainOptions holding_view_3(int iterations, int every, int from, int until) {
+  TrainOptions o = quiet_options(iterations);
+  o.held_back_views.assign(size_t(test::kSceneViews), 0);
+  o.held_back_views[3] = 1;
+  o.held_back_register_every = every;
+  o.held_back_register_from = from;
+  o.held_back_register_until = until;
+  return o;
+}
+
 TEST_CASE("trainer: a held-back view is not trained on until registration against the model releases it") {
   // View 3 given 6 degrees off: held back, never sampled, until a registration at iteration 200
   // (the model trained on the other seven views) converges; then it trains with a corrected pose.
   const test::TrainScene& s = scene();
-  test::TrainScene shifted = s;
-  shifted.ptrs.clear();
-  for (auto& v : shifted.views) shifted.ptrs.push_back(&v);
+  test::TrainScene shifted = scene_copy();
   const double xi[6] = {0.01, -0.02, 0.015, 0.06, -0.07, 0.05};  // about 6 degrees
   pose::apply_left_twist(xi, &shifted.views[3].camera.pose);
   const double before = pose::rotation_error_deg(shifted.views[3].camera.pose, s.views[3].camera.pose);
-  TrainOptions o = quiet_options(260);
-  o.held_back_views.assign(size_t(test::kSceneViews), 0);
-  o.held_back_views[3] = 1;
-  o.held_back_register_every = 100;
-  o.held_back_register_from = 200;
-  o.held_back_register_until = 200;
+  const TrainOptions o = holding_view_3(260, 100, 200, 200);
   std::unique_ptr<Trainer> t = make_trainer(initial_model(config()), o, nullptr, shifted);
   IterationStats st;
   int released_at = -1;
@@ -590,20 +602,13 @@ TEST_CASE("trainer: a view turned 25 degrees is repaired from its neighbours' po
   // similarity). Released at a new pose it is a repaired view, polished at the later passes; the
   // checkpoint (version 5) records it, and a run resumed between the passes ends bit-identically.
   const test::TrainScene& s = scene();
-  test::TrainScene turned = s;
-  turned.ptrs.clear();
-  for (auto& v : turned.views) turned.ptrs.push_back(&v);
+  test::TrainScene turned = scene_copy();
   pose::PoseNoise noise;
   REQUIRE(pose::parse_pose_noise("rot:25,seed:3", &noise).ok());
   double centre[3] = {0, 0, 0};
   pose::perturb_poses(noise, centre, 1.0, &turned.views[3].camera.pose, 1);
   const double before = pose::rotation_error_deg(turned.views[3].camera.pose, s.views[3].camera.pose);
-  TrainOptions o = quiet_options(230);
-  o.held_back_views.assign(size_t(test::kSceneViews), 0);
-  o.held_back_views[3] = 1;
-  o.held_back_register_every = 10;
-  o.held_back_register_from = 200;
-  o.held_back_register_until = 230;
+  const TrainOptions o = holding_view_3(230, 10, 200, 230);
   test::TempDir dir("gs_trainer_repair");
   const std::string ckpt = dir / "ckpt.bin";
   const HybridModel m0 = initial_model(config());

@@ -85,6 +85,13 @@ Status score_views_against_points(const float* xyz, const uint8_t* rgb, size_t n
 // decide (docs/POSES.md). Returns one flag per view; none when fewer than 3 views or when the
 // typical margin is under 0.1 (the points say too little about this scene).
 std::vector<uint8_t> suspect_views(const std::vector<ViewPointAgreement>& scores);
+// The rule above for one view against the typical view (median agree - median chance, median
+// points), e.g. a view at a new pose against the scores the whole set had.
+struct TypicalAgreement {
+  double margin = 0, points = 0;
+};
+TypicalAgreement typical_agreement(const std::vector<ViewPointAgreement>& scores);
+bool is_suspect(const ViewPointAgreement& score, const TypicalAgreement& typical);
 
 }  // namespace gs::pose
 

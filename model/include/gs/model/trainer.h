@@ -11,6 +11,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -81,6 +82,12 @@ struct TrainOptions {
   // motion could not register: trained on, they would blur the model where they look.
   std::vector<uint8_t> held_back_views;
   int held_back_register_every = 0, held_back_register_from = 0, held_back_register_until = 0;
+  // Evidence beyond the model's that a held view needs to rejoin at a new pose found by
+  // registration: called with the view's index and its camera at that pose, true allows it (else
+  // the view is treated as not placed). Null: the model's evidence alone. The training job checks
+  // the pose against the SfM points (pose::is_suspect): a registration against a model that has not
+  // seen what a view shows can converge to a look-alike pose.
+  std::function<bool(size_t view, const Camera& camera)> accept_new_pose;
   // Coarse to fine: the first coarse_fraction of the iterations render and compare at reduced
   // resolution, coarse_levels halvings spread evenly over it (2: 1/4 then 1/2), then full resolution.
   int coarse_levels = 0;
