@@ -147,6 +147,9 @@ int run(int argc, char** argv) {
   app.add_option("--isa", o.isa, "kernel table (default: the best for this CPU)");
   app.add_option("--image-features", o.image_features, "paper, visible or none")->capture_default_str()->check(CLI::IsMember({"paper", "visible", "none"}));
   app.add_option("--seed", o.seed, "model and view-order seed")->capture_default_str();
+  app.add_flag("!--no-view-check", o.view_check,
+               "train on every view as given (as before issue 26): no view held back by the check against the SfM points; "
+               "for speed comparisons with builds that have no such check");
   app.add_flag("--profile", profile,
                "time every stage of the timed iterations and print the roofline table (FLOPs, bytes, the machine's "
                "measured FMA and copy peaks)");
