@@ -203,11 +203,6 @@ Status Trainer::load_checkpoint(const std::string& path) {
   }
   d.held = held;
   d.repaired = repaired;
-  // A run resumed with views still held registers them: plan the registrar it was created without.
-  if (!d.registrar && (d.held_count() > 0 || d.repaired_count() > 0)) {
-    GS_RETURN_IF_ERROR(d.plan_registrar(d.opt));
-    if (d.registrar) d.planned_bytes += d.registrar->planned_bytes();
-  }
   d.iteration = iteration;
   d.rng.state = rng_state;
   d.view_pos = size_t(view_pos);

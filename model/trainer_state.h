@@ -54,7 +54,7 @@ struct Trainer::Impl {
   std::vector<const Camera*> cameras;   // -> view_cameras (the image-feature bank reads these)
   std::vector<double> pose_m, pose_v;   // [views, 6] Adam moments of the pose twists
   std::vector<int32_t> pose_steps;      // [views] Adam steps taken per pose
-  std::unique_ptr<pose::Registrar> registrar;  // registration passes (pose_register_every > 0)
+  std::unique_ptr<pose::Registrar> registrar;  // registration passes; held-back views' passes while needed
   platform::ThreadPool* pool = nullptr;
   const simd::KernelTable* kernels = nullptr;
   ImageFeatureBank bank;
@@ -118,10 +118,10 @@ struct Trainer::Impl {
   // registrar, the densification statistics and growth scratch (resize: live rows keep their
   // values), and the byte count. Called at creation and after the rows grow.
   Status plan(const TrainOptions& options);
-  // Creates the registrar when the run registers (see plan_registrar in trainer.cpp); a resumed run
-  // whose checkpoint holds views calls it after loading.
+  // Creates the registrar when the run has registration passes (see plan_registrar in trainer.cpp);
+  // held-back views' passes create it themselves (create_registrar) and free it when done.
   Status plan_registrar(const TrainOptions& options);
-  bool registrar_for_held = false;  // the registrar was planned for held-back views
+  Status create_registrar();
   // Dry run of the decoder's visibility test: the most live anchors one training view sees.
   size_t most_visible_anchors() const;
   // Memory follows the scene: the rows (model, Adam moments, gradients, statistics, pipeline) grow
