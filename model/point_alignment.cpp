@@ -347,10 +347,6 @@ Status score_views_against_points(const float* xyz, const uint8_t* rgb, size_t n
   }
   scores->assign(cameras.size(), ViewPointAgreement{});
   if (cameras.empty() || n == 0) return Status::Ok();
-  PointAlignOptions options;
-  options.huber = huber;
-  options.max_points = max_points;
-  const PointSample points = subsample_points(xyz, rgb, n, max_points);
   // With the points' own colours every view is scored on its own, one at a time: a full-resolution
   // z-buffer and the samples of every view at once were 60 MiB on snowmiku_plush (84 views), the
   // peak of a whole training run. Leave-one-out means need every view's samples together.
@@ -362,6 +358,10 @@ Status score_views_against_points(const float* xyz, const uint8_t* rgb, size_t n
     }
     return Status::Ok();
   }
+  PointAlignOptions options;
+  options.huber = huber;
+  options.max_points = max_points;
+  const PointSample points = subsample_points(xyz, rgb, n, max_points);
   std::vector<Camera> cams = cameras;
   Aligner al;
   al.setup(points, &cams, &options);

@@ -163,20 +163,24 @@ Status TrainSession::Impl::align_to_points(const TrainProgressFn& say) {
   return Status::Ok();
 }
 
+namespace {
+// The photo the SfM points are compared with: a masked view composited on black (its subject only),
+// in *storage; else the image itself.
+const io::Image8* photo_for_points(const io::DatasetView& view, io::Image8* storage) {
+  if (view.mask.empty()) return &view.image;
+  const float black[3] = {0, 0, 0};
+  *storage = io::composite_rgb8(view.image, view.mask, black);
+  return storage;
+}
+}  // namespace
+
 Status TrainSession::Impl::check_views(const TrainProgressFn& say) {
   std::vector<Camera> cams;
   std::vector<const io::Image8*> images;
-  std::vector<io::Image8> composited;  // masked views: compared as they are trained (on the background)
-  composited.reserve(train_views.size());
-  for (const io::DatasetView* v : train_views) {
-    cams.push_back(v->camera);
-    if (v->mask.empty()) {
-      images.push_back(&v->image);
-    } else {
-      const float black[3] = {0, 0, 0};
-      composited.push_back(io::composite_rgb8(v->image, v->mask, black));
-      images.push_back(&composited.back());
-    }
+  std::vector<io::Image8> composited(train_views.size());  // masked views only
+  for (size_t i = 0; i < train_views.size(); ++i) {
+    cams.push_back(train_views[i]->camera);
+    images.push_back(photo_for_points(*train_views[i], &composited[i]));
   }
   std::vector<pose::ViewPointAgreement> scores;
   const pose::PointAlignOptions defaults;
@@ -205,14 +209,13 @@ Status TrainSession::Impl::check_views(const TrainProgressFn& say) {
 
 bool TrainSession::Impl::points_accept(size_t v, const Camera& camera) const {
   if (dataset.points_rgb.empty() || !(typical_agreement.margin >= 0.1)) return true;  // the points cannot tell
-  const io::DatasetView& view = *train_views[v];
-  const float black[3] = {0, 0, 0};
-  const io::Image8 photo = view.mask.empty() ? io::Image8{} : io::composite_rgb8(view.image, view.mask, black);
+  io::Image8 storage;
+  const io::Image8* photo = photo_for_points(*train_views[v], &storage);
   std::vector<pose::ViewPointAgreement> score;
   const pose::PointAlignOptions defaults;
   const Status st = pose::score_views_against_points(dataset.points_xyz.data(), dataset.points_rgb.data(),
-                                                     dataset.points_xyz.size() / 3, {view.mask.empty() ? &view.image : &photo},
-                                                     {camera}, defaults.huber, defaults.max_points, nullptr, &score);
+                                                     dataset.points_xyz.size() / 3, {photo}, {camera}, defaults.huber,
+                                                     defaults.max_points, nullptr, &score);
   return st.ok() && !score.empty() && !pose::is_suspect(score[0], typical_agreement);
 }
 

@@ -106,7 +106,7 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
       if (!d.sfm_registered.empty()) {
         std::vector<uint8_t>& held = resolved->train.held_back_views;
         held.assign(d.sfm_registered.size(), 0);
-        for (size_t i = 0; i < d.sfm_registered.size(); ++i) held[i] = !d.sfm_registered[i] || d.sfm_suspect[i];
+        for (size_t i = 0; i < d.sfm_registered.size(); ++i) held[i] = d.held_by_sfm(i);
         if (std::find(held.begin(), held.end(), uint8_t(1)) == held.end()) held.clear();
       }
     }
@@ -132,7 +132,7 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
     for (size_t i = 0; i < held.size(); ++i) held[i] = held[i] || d.suspect[i];
     if (std::find(held.begin(), held.end(), uint8_t(0)) == held.end()) {
       say(text_event(TrainEvent::kNote, "every training view is suspect or unregistered: the view check holds none back"));
-      for (size_t i = 0; i < held.size(); ++i) held[i] = d.sfm_registered.empty() ? 0 : !d.sfm_registered[i] || d.sfm_suspect[i];
+      for (size_t i = 0; i < held.size(); ++i) held[i] = d.held_by_sfm(i);
     }
     if (std::find(held.begin(), held.end(), uint8_t(1)) == held.end()) held.clear();
   }

@@ -34,6 +34,10 @@ struct TrainSession::Impl {
   nlohmann::json sfm_init, point_alignment;  // stage reports for results.json
   std::vector<uint8_t> sfm_registered;       // [training views] 1 where SfM registered the view
   std::vector<uint8_t> sfm_suspect;          // [training views] 1 where SfM's consistency check doubts it
+  // Training view i is held back by what SfM said: not registered, or doubted by its check.
+  bool held_by_sfm(size_t i) const {
+    return i < sfm_registered.size() && (!sfm_registered[i] || (i < sfm_suspect.size() && sfm_suspect[i]));
+  }
   nlohmann::json view_check;                 // the point-agreement check's report for results.json
   std::vector<uint8_t> suspect;              // [training views] 1 where the points say the pose is wrong
   pose::TypicalAgreement typical_agreement;  // of the training views at their start poses
