@@ -229,7 +229,7 @@ void set_run_length(const TrainRunOptions& a, int iterations, model::TrainOption
   // once the evidence places it (Trainer: confirmed at its pose, or moved on clear evidence). From
   // 10 %, with the growth window: a correct view held until 20 % (snowmiku_plush's close-ups behind
   // the wardrobe door) missed the early growth where only it sees, 28.90 against 29.44 dB. The
-  // trainer only plans a registrar when a view is held, so a run that holds none pays nothing.
+  // trainer creates a registrar only while a view is held or repaired, so a run that holds none pays nothing.
   {
     t.held_back_register_every = std::max(1, iterations / 20);
     t.held_back_register_from = std::max(1, iterations / 10);
