@@ -18,6 +18,14 @@ mkdir -p "$work"
 "$hbgs" synth --out "$work/scene" --quiet
 "$hbgs" train "$work/scene" --out "$work/run" --iterations 200 --pose-noise barf:0.15 --optimize-poses \
   --pose-init sfm --eval-every 0 --threads 2
+# A failed check keeps the run's results (a rerun of the test clears the work folder): the cause of
+# a rare failure must not be lost with it.
+keep_on_failure() {
+  local kept="$work.failed-$(date +%Y%m%d-%H%M%S)"
+  mkdir -p "$kept" && cp -r "$work/run/results.json" "$work/run/progress.json" "$work/run/per_view.json" "$work/run/sfm_init" "$kept/" 2>/dev/null || true
+  echo "FAILED: the run's results are kept in $kept"
+}
+trap keep_on_failure ERR
 python3 - "$work/run/results.json" <<'PY'
 import json, sys
 r = next(iter(json.load(open(sys.argv[1])).values()))["poses"]
