@@ -423,6 +423,10 @@ bool is_suspect(const ViewPointAgreement& score, const TypicalAgreement& typical
   return score.agree - score.chance < 0.25 * typical.margin || double(score.visible) < 0.25 * typical.points;
 }
 
+bool prefers(const ViewPointAgreement& moved, const ViewPointAgreement& given, const TypicalAgreement& typical) {
+  return !is_suspect(moved, typical) && (moved.agree - moved.chance) - (given.agree - given.chance) >= 0.25 * typical.margin;
+}
+
 std::vector<uint8_t> suspect_views(const std::vector<ViewPointAgreement>& scores) {
   std::vector<uint8_t> flags(scores.size(), 0);
   if (scores.size() < 3) return flags;

@@ -12,6 +12,7 @@
 #include "pose_solve.h"
 #include "cloud_decode.h"
 #include "float_backend.h"
+#include "register_sharing.h"
 #include "gs/io/image.h"
 #include "gs/model/step_graph.h"
 #include "gs/optim/adam.h"
@@ -66,9 +67,14 @@ struct Registrar::Impl {
   RegisterOptions opt;
   platform::ThreadPool* pool = nullptr;
   const simd::KernelTable* kernels = nullptr;
-  Renderer renderer;
-  model::detail::FloatBackend backend;
-  model::StepWorkspace<float> ws;
+  // The renderer, decode backend and workspace: the registrar's own, or lent by a trainer
+  // (RegistrarSharing: registration runs between its steps, so one set serves both).
+  Renderer own_renderer;
+  model::detail::FloatBackend own_backend;
+  model::StepWorkspace<float> own_ws;
+  Renderer* renderer = &own_renderer;
+  model::detail::FloatBackend* backend = &own_backend;
+  model::StepWorkspace<float>* ws = &own_ws;
   std::vector<float> target, rgb, v_rgb;  // [H, W, 3] of the current level
   // kKeyframe: the keyframe at the finest level (colour, alpha-weighted depth, alpha) and its
   // box-filtered level copies, and the target at the level.
@@ -110,10 +116,28 @@ struct Registrar::Impl {
     return ro;
   }
 
+  // Every render of the registrar. A lent renderer is planned for fewer tile pairs per Gaussian
+  // (kReplannedIsectsPerGaussian): when a view needs more, it is re-planned once with half again of
+  // headroom, as FloatBackend::render_params does (an allocation, rare; its own renderer is planned
+  // for 8 and is never re-planned by a register_view, which allocates nothing).
+  Status forward(const Camera& cam, const GaussianParams& gp, const RenderOptions& ro, float* out_rgb,
+                 float* out_depth = nullptr) {
+    Status st = renderer->forward(cam, gp, ro, out_rgb, out_depth);
+    const uint64_t needed = renderer->stats().isects;
+    if (renderer != &own_renderer && st.code() == StatusCode::kCapacityExceeded &&
+        needed > renderer->capacity().max_isects && needed < (uint64_t(1) << 31)) {
+      RenderCapacity rc = renderer->capacity();
+      rc.max_isects = size_t(std::min<uint64_t>(needed + needed / 2, (uint64_t(1) << 31) - 1));
+      GS_RETURN_IF_ERROR(renderer->init(rc, pool, kernels));
+      st = renderer->forward(cam, gp, ro, out_rgb, out_depth);
+    }
+    return st;
+  }
+
   // The last render's opacity, 1 - final transmittance, [H, W] of cam.
   void opacity(const Camera& cam, float* out) const {
     const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
-    const float* T = renderer.final_transmittance();
+    const float* T = renderer->final_transmittance();
     for (size_t i = 0; i < n; ++i) out[i] = 1.0f - T[i];
   }
 
@@ -143,17 +167,17 @@ struct Registrar::Impl {
   size_t decode_uncached(const Camera& cam) {
     if (cloud) return cloud_decoder.decode(*cloud, decode_camera(cam));
     size_t V = 0;
-    return model::decode_view(backend, model::detail::model_params(*model), decode_camera(cam), ws, &V);
+    return model::decode_view(*backend, model::detail::model_params(*model), decode_camera(cam), *ws, &V);
   }
 
   // The Gaussians of the last decode, as the renderer takes them.
-  GaussianParams gaussians() const { return cloud ? cloud_decoder.params() : model::gaussian_params(ws.ng); }
+  GaussianParams gaussians() const { return cloud ? cloud_decoder.params() : model::gaussian_params(ws->ng); }
 
   Status render(const Camera& cam) {
     const GaussianParams gp = gaussians();
     RenderOptions ro = render_options(false);
     ro.fixed_point = false;  // followed by backward / pose_normal_equations (float only)
-    return renderer.forward(cam, gp, ro, rgb.data());
+    return forward(cam, gp, ro, rgb.data());
   }
 
   double rmse(const Camera& cam) const {
@@ -177,7 +201,7 @@ struct Registrar::Impl {
 
   double coverage(const Camera& cam) const {
     const size_t n = size_t(cam.intr.width) * size_t(cam.intr.height);
-    const float* T = renderer.final_transmittance();
+    const float* T = renderer->final_transmittance();
     double c = 0;
     for (size_t i = 0; i < n; ++i) c += 1.0 - double(T[i]);
     return c / double(n);
@@ -208,7 +232,7 @@ struct Registrar::Impl {
     if (*decoded == 0) return Status::Ok();
     if (!(key_valid && same_camera(kc, key_cam))) {
       const GaussianParams gp = gaussians();
-      GS_RETURN_IF_ERROR(renderer.forward(kc, gp, render_options(true), key_rgb.data(), key_depth.data()));
+      GS_RETURN_IF_ERROR(forward(kc, gp, render_options(true), key_rgb.data(), key_depth.data()));
       opacity(kc, key_alpha.data());
       key_cam = kc;
       key_valid = true;
@@ -236,7 +260,7 @@ struct Registrar::Impl {
   Status level_gauss_newton(Camera& cam, int* iterations, double deadline) {
     PoseNormalEquations ne;
     GS_RETURN_IF_ERROR(render(cam));
-    GS_RETURN_IF_ERROR(renderer.pose_normal_equations(target.data(), nullptr, opt.huber_delta, &ne));
+    GS_RETURN_IF_ERROR(renderer->pose_normal_equations(target.data(), nullptr, opt.huber_delta, &ne));
     double lambda = 1e-3;
     for (int it = 0; it < opt.max_iterations_per_level; ++it) {
       if (deadline > 0 && platform::now_seconds() > deadline) break;
@@ -256,7 +280,7 @@ struct Registrar::Impl {
         pose::apply_left_twist(xi, &trial.pose);
         GS_RETURN_IF_ERROR(render(trial));
         PoseNormalEquations tne;
-        GS_RETURN_IF_ERROR(renderer.pose_normal_equations(target.data(), nullptr, opt.huber_delta, &tne));
+        GS_RETURN_IF_ERROR(renderer->pose_normal_equations(target.data(), nullptr, opt.huber_delta, &tne));
         ++*iterations;
         if (tne.cost < ne.cost) {
           const double decrease = (ne.cost - tne.cost) / std::max(ne.cost, 1e-30);
@@ -282,7 +306,7 @@ struct Registrar::Impl {
     key_cam = cam;
     key_valid = true;
     const GaussianParams gp = gaussians();
-    GS_RETURN_IF_ERROR(renderer.forward(cam, gp, render_options(true), key_rgb.data(), key_depth.data()));
+    GS_RETURN_IF_ERROR(forward(cam, gp, render_options(true), key_rgb.data(), key_depth.data()));
     opacity(cam, key_alpha.data());
     return Status::Ok();
   }
@@ -399,7 +423,7 @@ struct Registrar::Impl {
     const Camera kc = scaled_camera(full, ks);
     const GaussianParams gp = gaussians();
     key_valid = false;  // rendered with the Gaussians of the polish's decode, not full's own
-    GS_RETURN_IF_ERROR(renderer.forward(kc, gp, render_options(true), key_rgb.data(), key_depth.data()));
+    GS_RETURN_IF_ERROR(forward(kc, gp, render_options(true), key_rgb.data(), key_depth.data()));
     opacity(kc, key_alpha.data());
     const int f = finest / ks;
     io::box_downsample_float(key_rgb.data(), kc.intr.width, kc.intr.height, 3, f, lvl_rgb.data());
@@ -578,7 +602,7 @@ struct Registrar::Impl {
         best_pose = cam.pose;
       }
       GaussianGrads g;
-      GS_RETURN_IF_ERROR(renderer.backward(v_rgb.data(), &g));
+      GS_RETURN_IF_ERROR(renderer->backward(v_rgb.data(), &g));
       ++*iterations;
       // Cosine decay of the rate over the level (large early steps, fine at the end).
       const double decay = optim::cosine_decay(steps, it, 0.05);
@@ -610,12 +634,39 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const model::HybridModel&
   // The kept Gaussians are planned by the first decode (half again of what it keeps; a pose that
   // keeps more grows the plan), not k per anchor row: a view keeps far fewer.
   Expected<RenderCapacity> rc = model::detail::plan_model_pipeline(model, cap, max_width, max_height, 1, 1, pool, d.kernels,
-                                                            &d.renderer, &d.backend, &d.ws, /*training=*/false,
+                                                            d.renderer, d.backend, d.ws, /*training=*/false,
                                                             /*isects_per_gaussian=*/8, /*visible_rows=*/0, /*gaussians=*/1);
   if (!rc.ok()) return rc.status();
   d.allocate_images();
   d.bytes = Renderer::plan_bytes(*rc) + d.image_bytes() +
-            uint64_t(d.ws.X.size() * 3 + d.ws.means.size() * 4 + d.ws.quats.size() * 2) * 4;
+            uint64_t(d.ws->X.size() * 3 + d.ws->means.size() * 4 + d.ws->quats.size() * 2) * 4;
+  return r;
+}
+
+Expected<std::unique_ptr<Registrar>> RegistrarSharing::create(const model::HybridModel& model, int max_width, int max_height,
+                                                              const RegisterOptions& options, platform::ThreadPool* pool,
+                                                              const simd::KernelTable* kernels, size_t plan_anchor_rows,
+                                                              Renderer* renderer, model::detail::FloatBackend* backend,
+                                                              model::StepWorkspace<float>* ws) {
+  GS_RETURN_IF_ERROR(model.config.validate());
+  if (model.anchor_count == 0) return invalid_argument("registration: the model has no anchors");
+  GS_RETURN_IF_ERROR(check_plan(max_width, max_height, options));
+  if (!renderer || !backend || !ws) return invalid_argument("registration: a lent renderer, backend and workspace are all needed");
+  if (ws->capacity < std::max(model.anchor_count, plan_anchor_rows))
+    return invalid_argument("registration: the lent workspace holds fewer anchor rows than planned");
+  const RenderCapacity& rc = renderer->capacity();
+  if (rc.max_width < max_width || rc.max_height < max_height)
+    return invalid_argument("registration: the lent renderer is planned for smaller images");
+  std::unique_ptr<Registrar> r(new Registrar());
+  Registrar::Impl& d = *r->impl_;
+  d.model = &model;
+  d.setup(options, pool, kernels, max_width, max_height, model.scene_extent);
+  d.planned_rows = std::max(model.anchor_count, plan_anchor_rows);
+  d.renderer = renderer;
+  d.backend = backend;
+  d.ws = ws;
+  d.allocate_images();
+  d.bytes = d.image_bytes();  // the rest is the lender's
   return r;
 }
 
@@ -630,7 +681,7 @@ Expected<std::unique_ptr<Registrar>> Registrar::create(const GaussianCloud& clou
   d.cloud = &cloud;
   d.setup(options, pool, kernels, max_width, max_height, scene_extent);
   const RenderCapacity rc = model::detail::cloud_render_capacity(cloud.size(), max_width, max_height);
-  GS_RETURN_IF_ERROR(d.renderer.init(rc, pool, d.kernels));
+  GS_RETURN_IF_ERROR(d.renderer->init(rc, pool, d.kernels));
   d.cloud_decoder.reserve(cloud.size(), cloud.sh_degree);
   d.allocate_images();
   d.bytes = Renderer::plan_bytes(rc) + d.image_bytes() + d.cloud_decoder.bytes();
@@ -653,7 +704,7 @@ Status Registrar::render(const Camera& cam, float* rgb, float* depth, float* alp
     if (alpha) std::fill(alpha, alpha + n, 0.0f);
     return Status::Ok();
   }
-  GS_RETURN_IF_ERROR(d.renderer.forward(cam, d.gaussians(), d.render_options(depth != nullptr), rgb, depth));
+  GS_RETURN_IF_ERROR(d.forward(cam, d.gaussians(), d.render_options(depth != nullptr), rgb, depth));
   if (alpha) d.opacity(cam, alpha);
   d.polish_render_valid = false;
   return Status::Ok();

@@ -207,16 +207,18 @@ Status TrainSession::Impl::check_views(const TrainProgressFn& say) {
   return Status::Ok();
 }
 
-bool TrainSession::Impl::points_accept(size_t v, const Camera& camera) const {
-  if (dataset.points_rgb.empty() || !(typical_agreement.margin >= 0.1)) return true;  // the points cannot tell
+model::TrainOptions::PoseEvidence TrainSession::Impl::points_judge(size_t v, const Camera& given, const Camera& moved) const {
+  using Evidence = model::TrainOptions::PoseEvidence;
+  if (dataset.points_rgb.empty() || !(typical_agreement.margin >= 0.1)) return Evidence::kAccepts;  // the points cannot tell
   io::Image8 storage;
   const io::Image8* photo = photo_for_points(*train_views[v], &storage);
   std::vector<pose::ViewPointAgreement> score;
   const pose::PointAlignOptions defaults;
   const Status st = pose::score_views_against_points(dataset.points_xyz.data(), dataset.points_rgb.data(),
-                                                     dataset.points_xyz.size() / 3, {photo}, {camera}, defaults.huber,
+                                                     dataset.points_xyz.size() / 3, {photo, photo}, {given, moved}, defaults.huber,
                                                      defaults.max_points, nullptr, &score);
-  return st.ok() && !score.empty() && !pose::is_suspect(score[0], typical_agreement);
+  if (!st.ok() || score.size() != 2 || pose::is_suspect(score[1], typical_agreement)) return Evidence::kContradicts;
+  return pose::prefers(score[1], score[0], typical_agreement) ? Evidence::kPrefers : Evidence::kAccepts;
 }
 
 }  // namespace gs::jobs

@@ -124,7 +124,9 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
     // checkpoint): a held view still needs the points' consent to move.
     GS_RETURN_IF_ERROR(d.check_views(say));
     Impl* state = &d;
-    resolved->train.accept_new_pose = [state](size_t v, const Camera& camera) { return state->points_accept(v, camera); };
+    resolved->train.judge_new_pose = [state](size_t v, const Camera& given, const Camera& moved) {
+      return state->points_judge(v, given, moved);
+    };
   }
   if (options.view_check && points_meaningful && !options.resume) {
     std::vector<uint8_t>& held = resolved->train.held_back_views;

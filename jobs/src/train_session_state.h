@@ -70,8 +70,9 @@ struct TrainSession::Impl {
   // are held back from training: with pose optimisation until a registration against the model
   // places them (then they are repaired), without it for the whole run.
   Status check_views(const TrainProgressFn& say);
-  // The SfM points' verdict on training view v at another pose (TrainOptions::accept_new_pose).
-  bool points_accept(size_t v, const Camera& camera) const;
+  // The SfM points' verdict on training view v moved from its given pose to another
+  // (TrainOptions::judge_new_pose).
+  model::TrainOptions::PoseEvidence points_judge(size_t v, const Camera& given, const Camera& moved) const;
 };
 
 // The message when pose_init "sfm" needs an initialiser and none was given.

@@ -7,6 +7,7 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <string>
 #include <vector>
@@ -16,6 +17,7 @@
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
 #include "gs/model/register.h"
+#include "register_sharing.h"  // private to gs_model (tests/model/CMakeLists.txt)
 #include "support/alloc_counter.h"
 #include "support/model_fixtures.h"
 #include "support/reduced.h"
@@ -90,6 +92,55 @@ TEST_CASE("register: keyframe alignment and Gauss-Newton recover the pose from a
     CHECK(r.final_rmse < r.initial_rmse);
   }
   }
+}
+
+TEST_CASE("register: a registrar lent another renderer and workspaces gives bit-identical results, re-planning tile pairs") {
+  // The trainer lends its renderer, backend and step workspace to the registrar of its held views
+  // (RegistrarSharing). Here they are planned as a trainer plans them, then the renderer for only
+  // 16 tile pairs, so the lent renderer must re-plan on the first render; every result must equal
+  // the registrar with its own set, for each solver.
+  const Fixture& f = fixture();
+  platform::ThreadPool pool(2);
+  Renderer renderer;
+  detail::FloatBackend backend;
+  StepWorkspace<float> ws;
+  REQUIRE(detail::plan_model_pipeline(f.model, f.model.anchor_count, kW, kH, kW, kH, &pool, &simd::best_kernel_table(), &renderer,
+                                      &backend, &ws, /*training=*/true, detail::kReplannedIsectsPerGaussian)
+              .ok());
+  RenderCapacity too_few = renderer.capacity();
+  too_few.max_isects = 16;  // far fewer than any view here needs
+  REQUIRE(renderer.init(too_few, &pool, &simd::best_kernel_table()).ok());
+  const size_t planned_isects = renderer.capacity().max_isects;
+  for (pose::RegisterOptions::Solver solver :
+       {pose::RegisterOptions::kKeyframe, pose::RegisterOptions::kGaussNewton, pose::RegisterOptions::kAdam}) {
+    pose::RegisterOptions opt;
+    opt.solver = solver;
+    auto own = pose::Registrar::create(f.model, kW, kH, opt, &pool);
+    auto lent = pose::RegistrarSharing::create(f.model, kW, kH, opt, &pool, nullptr, 0, &renderer, &backend, &ws);
+    REQUIRE(own.ok());
+    REQUIRE(lent.ok());
+    CHECK((*lent)->planned_bytes() < (*own)->planned_bytes());
+    const Pose start = f.perturbed(5, 0.05, 7);
+    pose::RegisterResult a, b;
+    REQUIRE((*own)->register_view(f.image.data(), f.truth.intr, start, &a).ok());
+    REQUIRE((*lent)->register_view(f.image.data(), f.truth.intr, start, &b).ok());
+    CHECK(std::memcmp(&a.pose, &b.pose, sizeof(Pose)) == 0);
+    CHECK(a.verdict == b.verdict);
+    CHECK(a.final_rmse == b.final_rmse);
+    CHECK(a.iterations == b.iterations);
+  }
+  CHECK(renderer.capacity().max_isects > planned_isects);  // re-planned, not failed
+  // Refused: a lent renderer planned for smaller images, a workspace for fewer rows, a null one.
+  Renderer small;
+  detail::FloatBackend small_backend;
+  StepWorkspace<float> small_ws;
+  REQUIRE(detail::plan_model_pipeline(f.model, f.model.anchor_count, kW / 2, kH / 2, kW / 2, kH / 2, &pool,
+                                      &simd::best_kernel_table(), &small, &small_backend, &small_ws)
+              .ok());
+  const pose::RegisterOptions opt;
+  CHECK_FALSE(pose::RegistrarSharing::create(f.model, kW, kH, opt, &pool, nullptr, 0, &small, &small_backend, &small_ws).ok());
+  CHECK_FALSE(pose::RegistrarSharing::create(f.model, kW, kH, opt, &pool, nullptr, f.model.anchor_count + 1, &renderer, &backend, &ws).ok());
+  CHECK_FALSE(pose::RegistrarSharing::create(f.model, kW, kH, opt, &pool, nullptr, 0, &renderer, nullptr, &ws).ok());
 }
 
 TEST_CASE("register: coarse start candidates widen the keyframe basin") {

@@ -596,6 +596,41 @@ TEST_CASE("trainer: a held-back view is not trained on until registration agains
   CHECK(all_held.status().message().find("every training view is held back") != std::string::npos);
 }
 
+TEST_CASE("trainer: the evidence on a new pose decides a held view: contradicted it keeps its given pose, preferred it moves") {
+  // View 3 given 6 degrees off and held; one registration pass at iteration 200 finds a new pose.
+  // TrainOptions::judge_new_pose (the SfM points in the training job) is asked with the given and
+  // the new camera: kContradicts never lets the view move (it rejoins at its given pose or stays
+  // held), kPrefers moves it (repaired) on a better fit.
+  const test::TrainScene& s = scene();
+  test::TrainScene shifted = scene_copy();
+  const double xi[6] = {0.01, -0.02, 0.015, 0.06, -0.07, 0.05};  // about 6 degrees
+  pose::apply_left_twist(xi, &shifted.views[3].camera.pose);
+  const Pose given = shifted.views[3].camera.pose;
+  const double before = pose::rotation_error_deg(given, s.views[3].camera.pose);
+  for (const auto evidence : {TrainOptions::PoseEvidence::kContradicts, TrainOptions::PoseEvidence::kPrefers}) {
+    TrainOptions o = holding_view_3(200, 100, 200, 200);
+    int calls = 0;
+    bool given_passed = true;
+    o.judge_new_pose = [&](size_t v, const Camera& g, const Camera& moved) {
+      ++calls;
+      given_passed = given_passed && v == 3 && std::memcmp(&g.pose, &given, sizeof(Pose)) == 0 &&
+                     pose::rotation_error_deg(moved.pose, given) > 1.0;
+      return evidence;
+    };
+    std::unique_ptr<Trainer> t = make_trainer(initial_model(config()), o, nullptr, shifted);
+    for (int it = 1; it <= 200; ++it) REQUIRE(t->step(nullptr).ok());
+    const double after = pose::rotation_error_deg(t->cameras()[3].pose, s.views[3].camera.pose);
+    const bool preferred = evidence == TrainOptions::PoseEvidence::kPrefers;
+    MESSAGE(std::string(preferred ? "preferred" : "contradicted") << ": " << before << " degrees off, then " << after << " degrees; judge called "
+                                                      << calls << " times; repaired " << int(t->repaired()[3]));
+    CHECK(calls == 1);
+    CHECK(given_passed);
+    CHECK(t->repaired()[3] == (preferred ? 1 : 0));
+    if (preferred) CHECK(after < 0.25 * before);
+    else CHECK(std::memcmp(&t->cameras()[3].pose, &given, sizeof(Pose)) == 0);
+  }
+}
+
 TEST_CASE("trainer: a view turned 25 degrees is repaired from its neighbours' poses, and resumes bit-identically") {
   // View 3 turned 25 degrees about its centre: beyond what a registration from its own pose
   // corrects, so the start that places it is a neighbour's pose (capture order or image

@@ -92,6 +92,12 @@ struct TypicalAgreement {
 };
 TypicalAgreement typical_agreement(const std::vector<ViewPointAgreement>& scores);
 bool is_suspect(const ViewPointAgreement& score, const TypicalAgreement& typical);
+// Whether the points clearly prefer a view at a new pose to the same view at its given pose: the
+// new pose is not suspect and its margin over chance is higher by at least a quarter of the typical
+// margin (the unit of the suspect rule). A pose off by 8 degrees the points only half trusted (a
+// margin of 0.29 against a typical 0.62, not suspect) scored 0.61 at the true pose; the correct
+// views snowmiku_plush's door hides stay suspect at every pose registration gave them.
+bool prefers(const ViewPointAgreement& moved, const ViewPointAgreement& given, const TypicalAgreement& typical);
 
 }  // namespace gs::pose
 

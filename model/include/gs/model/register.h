@@ -144,6 +144,7 @@ class Registrar {
   uint64_t planned_bytes() const;
 
  private:
+  friend struct RegistrarSharing;  // model/register_sharing.h: a trainer lends its renderer
   Registrar();
   struct Impl;
   std::unique_ptr<Impl> impl_;

@@ -82,12 +82,15 @@ struct TrainOptions {
   // motion could not register: trained on, they would blur the model where they look.
   std::vector<uint8_t> held_back_views;
   int held_back_register_every = 0, held_back_register_from = 0, held_back_register_until = 0;
-  // Evidence beyond the model's that a held view needs to rejoin at a new pose found by
-  // registration: called with the view's index and its camera at that pose, true allows it (else
-  // the view is treated as not placed). Null: the model's evidence alone. The training job checks
-  // the pose against the SfM points (pose::is_suspect): a registration against a model that has not
-  // seen what a view shows can converge to a look-alike pose.
-  std::function<bool(size_t view, const Camera& camera)> accept_new_pose;
+  // Evidence beyond the model's on a new pose that registration found for a held view: called with
+  // the view's index, its camera at the given pose and at the new one. kContradicts: the view is
+  // not placed there; kAccepts: it may move if the model's evidence is clear (a much better fit);
+  // kPrefers: the evidence clearly favours the new pose, so it moves on any better fit. Null: the
+  // model's evidence alone. The training job asks the SfM points (pose::is_suspect, pose::prefers):
+  // a registration against a model that has not seen what a view shows can converge to a
+  // look-alike pose, and a young model's fit alone cannot tell a wrong given pose from that.
+  enum class PoseEvidence { kContradicts, kAccepts, kPrefers };
+  std::function<PoseEvidence(size_t view, const Camera& given, const Camera& moved)> judge_new_pose;
   // Coarse to fine: the first coarse_fraction of the iterations render and compare at reduced
   // resolution, coarse_levels halvings spread evenly over it (2: 1/4 then 1/2), then full resolution.
   int coarse_levels = 0;
