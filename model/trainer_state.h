@@ -140,9 +140,12 @@ struct Trainer::Impl {
   // Registers every held-back view against the current model; a converged one gets that pose
   // (Adam state reset) and joins training. Returns how many joined. Several starts per view: its
   // own pose, the poses of the trained views next to it in capture order (by name) and of those
-  // whose photos look most like it (descriptors); the converged result with the lowest residual wins.
+  // whose photos look most like it (descriptors), searched at kHeldSearchDownscale, then the own
+  // pose and the best converged search at full resolution; the converged result with the lowest
+  // residual wins.
   // A view moves only when a converged pose away from the given one fits clearly better
-  // (kRepairRmseRatio); else it rejoins at its given pose if the registration from it converged.
+  // (kRepairRmseRatio) or better with the points preferring it (TrainOptions::judge_new_pose);
+  // else it rejoins at its given pose if the registration from it converged.
   // Views repaired (moved) by an earlier pass are registered again from their pose (the model is better
   // now) and keep the result when it converges to a lower residual.
   Status register_held(int it, int* released);
@@ -154,6 +157,8 @@ struct Trainer::Impl {
   // A held view moves to a registered pose only when that pose's RMSE is below this fraction of
   // the RMSE at its given pose (see register_held).
   static constexpr double kRepairRmseRatio = 0.7;
+  // The resolution divisor of the search from a held view's other starts (register_held).
+  static constexpr int kHeldSearchDownscale = 4;
   int held_starts(size_t v, Pose* starts) const;
   void describe_photos();  // fills descriptors
   // Target at resolution divisor s (s x s block means, matching scaled_camera), composited on bg;
