@@ -148,7 +148,8 @@ Status TrainSession::Impl::align_to_points(const TrainProgressFn& say) {
   set_train_poses(poses_of(cams));
   const pose::PoseErrors e = errors(poses_of(cams), true);
   nlohmann::json reverted = nlohmann::json::array();
-  for (int v : rep.reverted_views) reverted.push_back(train_names[size_t(v)]);
+  alignment_doubted.assign(train_views.size(), 0);
+  for (int v : rep.reverted_views) reverted.push_back(train_names[size_t(v)]), alignment_doubted[size_t(v)] = 1;
   point_alignment = {{"seconds", rep.seconds}, {"points", rep.points_used}, {"levels", rep.levels},
                      {"rounds", rep.rounds}, {"kept_start_pose", reverted}, {"median_move_deg", rep.median_move_deg},
                      {"median_move_fraction_of_radius", rep.median_move_frac}, {"discarded", rep.discarded},

@@ -278,6 +278,7 @@ nlohmann::json TrainRun::held_back_json() const {
   // Why each view was held back at the start (a resumed run's session did not check again: its
   // lists are empty; still_held and repaired come from the checkpoint), and where those views are now.
   nlohmann::json unregistered = nlohmann::json::array(), suspect = nlohmann::json::array(), sfm_doubted = nlohmann::json::array();
+  nlohmann::json moved_far = nlohmann::json::array();
   nlohmann::json still = nlohmann::json::array(), repaired = nlohmann::json::array(), confirmed = nlohmann::json::array();
   const std::vector<uint8_t>& held = trainer_->held_back();
   const std::vector<uint8_t>& moved = trainer_->repaired();
@@ -286,18 +287,23 @@ nlohmann::json TrainRun::held_back_json() const {
     const bool unreg = i < d_->sfm_registered.size() && !d_->sfm_registered[i];
     const bool doubted = i < d_->sfm_suspect.size() && d_->sfm_suspect[i];
     const bool susp = i < d_->suspect.size() && d_->suspect[i];
+    // (held only with the view check, as the points' suspects)
+    const bool far = !d_->suspect.empty() && i < d_->alignment_doubted.size() && d_->alignment_doubted[i];
     if (unreg) unregistered.push_back(d_->train_names[i]);
     if (doubted) sfm_doubted.push_back(d_->train_names[i]);
     if (susp) suspect.push_back(d_->train_names[i]);
-    if (unreg || doubted || susp) ++at_start;
+    if (far) moved_far.push_back(d_->train_names[i]);
+    const bool held_at_start = unreg || doubted || susp || far;
+    if (held_at_start) ++at_start;
     if (held[i]) still.push_back(d_->train_names[i]);
     else if (moved[i]) repaired.push_back(d_->train_names[i]);
-    else if (unreg || doubted || susp) confirmed.push_back(d_->train_names[i]);
+    else if (held_at_start) confirmed.push_back(d_->train_names[i]);
   }
   return nlohmann::json{{"at_start", at_start},
                         {"not_registered_by_sfm", unregistered},
                         {"doubted_by_sfm_check", sfm_doubted},
                         {"contradicted_by_points", suspect},
+                        {"moved_far_by_point_alignment", moved_far},
                         {"repaired", repaired},
                         {"confirmed_at_given_pose", confirmed},
                         {"still_held", still}};
