@@ -134,7 +134,7 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
     // With them the views the point alignment moved far and put back: both times a COLMAP run placed
     // one view 6-8 degrees off in the end-to-end test (0009.png, 0006.png), the alignment wanted to
     // move exactly that view over 3x the median, while its points still agreed at half the typical
-    // margin (not suspect); in 30 runs without such a view it flagged none.
+    // margin (not suspect); docs/POSES.md has the other runs.
     for (size_t i = 0; i < held.size(); ++i)
       held[i] = held[i] || d.suspect[i] || (i < d.alignment_doubted.size() && d.alignment_doubted[i]);
     if (std::find(held.begin(), held.end(), uint8_t(0)) == held.end()) {
