@@ -75,4 +75,35 @@ TEST_CASE("view repair: three views turned 10-40 degrees are held back, then rep
   }
 }
 
+TEST_CASE("view repair: a view the point alignment moves far is held back even when the points do not contradict it") {
+  // One training view turned 3 degrees (seed 1: 0019.png) on the generated scene, the others exact:
+  // the points still agree with it well above a quarter of the typical margin (not suspect), but the
+  // point alignment moves it over 3x the median move and puts it back. That is how the two views
+  // COLMAP placed 6-8 degrees off in the failed end-to-end runs looked (docs/POSES.md), so it is held
+  // back from the first iteration; one iteration is enough to see it (no registration pass runs).
+  const std::string tmp = std::string(GS_TEST_TMP) + "/view_repair_far";
+  fs::remove_all(tmp);
+  fs::create_directories(tmp);
+  const std::string scene = tmp + "/scene", out = tmp + "/run";
+  REQUIRE(run(std::string(GS_HBGS_EXE) + " synth --out " + scene + " --quiet") == 0);
+  REQUIRE(run(std::string(GS_HBGS_EXE) + " train " + scene + " --out " + out + " --iterations 1 --eval-every 0 --threads 2 " +
+              "--optimize-poses --pose-noise rot:3,views:1,seed:1 > " + out + ".log 2>&1") == 0);
+  const nlohmann::json poses = results_in(out)["poses"];
+  const nlohmann::json& input = poses["train_input"]["per_view_rotation_deg"];
+  std::vector<std::string> turned;
+  for (auto it = input.begin(); it != input.end(); ++it)
+    if (it.value().get<double>() > 1) turned.push_back(it.key());
+  REQUIRE(turned.size() == 1);
+  const nlohmann::json& held = poses["held_back"];
+  const auto names = [&](const char* key) { return held[key].get<std::vector<std::string>>(); };
+  CHECK(names("moved_far_by_point_alignment") == turned);
+  CHECK(names("contradicted_by_points").empty());
+  CHECK(names("still_held") == turned);
+  CHECK(poses["point_alignment"]["kept_start_pose"].get<std::vector<std::string>>() == turned);
+  // With --no-view-check nothing is held: the check is the one switch for both.
+  REQUIRE(run(std::string(GS_HBGS_EXE) + " train " + scene + " --out " + out + "_nocheck --iterations 1 --eval-every 0 --threads 2 " +
+              "--optimize-poses --pose-noise rot:3,views:1,seed:1 --no-view-check > " + out + "_nocheck.log 2>&1") == 0);
+  CHECK(results_in(out + "_nocheck")["poses"]["held_back"]["still_held"].empty());
+}
+
 }  // namespace
