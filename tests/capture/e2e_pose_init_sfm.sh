@@ -41,7 +41,8 @@ print(f"given poses: {given['rotation_mean_deg']:.3f} deg; after SfM init: {sfm[
       f"{align['errors']['rotation_mean_deg']:.3f} deg (median move {align.get('median_move_deg', float('nan')):.3f} deg); "
       f"final: {final['rotation_mean_deg']:.3f} deg over all views, {trained_mean:.3f} deg over the {len(rot)} trained on, "
       f"{100 * trained_trans:.3f} % of the radius (trained on); held back {held['at_start']} "
-      f"(contradicted by the points {held['contradicted_by_points']}, not registered {held['not_registered_by_sfm']}), "
+      f"(contradicted by the points {held['contradicted_by_points']}, not registered {held['not_registered_by_sfm']}, "
+      f"doubted by the SfM check {held['doubted_by_sfm_check']}, moved far by the point alignment {held['moved_far_by_point_alignment']}), "
       f"repaired {held['repaired']}, kept out {sorted(still)}")
 # Limits from measured spreads (2 cores, a build and other tests alongside; 19 SfM attempts over
 # 15 runs). When COLMAP's reconstruction is sound (0.75-1.16 degrees after SfM), the point alignment
