@@ -70,6 +70,8 @@ class ColmapPoseInitializer final : public SfmPoseInitializer {
     r.registered = rep.registered_views;
     r.suspect = rep.suspect_views;
     r.disagreement_deg = rep.disagreement_deg;
+    r.chosen_seed = rep.chosen_seed;
+    r.first_run_suspect = rep.first_run_suspect;
     r.images = sfm_images->folder.empty() ? std::string("training images") : sfm_images->folder;
     r.image_width = cams[0].intr.width;
     r.image_height = cams[0].intr.height;

@@ -243,6 +243,23 @@ SfmConsistency compare_reconstructions(const io::ColmapModel& chosen, const std:
   return c;
 }
 
+size_t choose_most_consistent(const std::vector<io::ColmapModel>& runs, size_t min_registered, double suspect_rotation_deg,
+                              double suspect_centre_fraction, SfmConsistency* consistency) {
+  size_t best = 0;
+  bool have = false;
+  for (size_t i = 0; i < runs.size(); ++i) {
+    if (runs[i].images.size() < min_registered && i > 0) continue;
+    std::vector<io::ColmapModel> others;
+    for (size_t j = 0; j < runs.size(); ++j)
+      if (j != i) others.push_back(runs[j]);
+    SfmConsistency c = compare_reconstructions(runs[i], others, suspect_rotation_deg, suspect_centre_fraction);
+    const bool better = !have || c.suspect < consistency->suspect ||
+                        (c.suspect == consistency->suspect && runs[i].images.size() > runs[best].images.size());
+    if (better) best = i, have = true, *consistency = std::move(c);
+  }
+  return best;
+}
+
 Expected<Matcher> parse_matcher(const std::string& name) {
   if (name == "sequential") return Matcher::kSequential;
   if (name == "exhaustive") return Matcher::kExhaustive;
@@ -311,7 +328,7 @@ Status run_colmap_reconstruction(const std::string& frames_dir, const std::strin
       &rep.seconds_mapping));
 
   io::ColmapModel chosen;
-  const std::string best_model = largest_model(sparse, &rep.models, &chosen);
+  std::string best_model = largest_model(sparse, &rep.models, &chosen);
   rep.registered = int(chosen.images.size());
   rep.points = int(chosen.points.size());
   const int needed = std::max(o.min_registered, int(o.min_registered_fraction * rep.images + 0.999));
@@ -329,7 +346,12 @@ Status run_colmap_reconstruction(const std::string& frames_dir, const std::strin
     const double t0 = platform::now_seconds();
     if (progress)
       progress("      consistency check: mapping again with " + std::to_string(o.check_runs) + " other seed(s)");
-    std::vector<io::ColmapModel> checks;
+    // runs[0] is the first mapping; each check run that reconstructed something follows, with its
+    // seed and model folder.
+    std::vector<io::ColmapModel> runs;
+    std::vector<int> seeds = {0};
+    std::vector<std::string> dirs = {best_model};
+    runs.push_back(chosen);
     for (int seed = 1; seed <= o.check_runs; ++seed) {
       const std::string out = work_dir + "/sparse_check" + std::to_string(seed);
       fs::remove_all(out, ec);
@@ -338,14 +360,32 @@ Status run_colmap_reconstruction(const std::string& frames_dir, const std::strin
       GS_RETURN_IF_ERROR(run_stage(mapper_args(colmap, db, frames_dir, out, std::to_string(seed), o),
                                    "check mapping (seed " + std::to_string(seed) + ")", log_path, {}, {}, &seconds));
       io::ColmapModel m;
-      if (!largest_model(out, nullptr, &m).empty()) checks.push_back(std::move(m));
+      const std::string dir = largest_model(out, nullptr, &m);
+      if (dir.empty()) continue;
+      runs.push_back(std::move(m));
+      seeds.push_back(seed);
+      dirs.push_back(dir);
     }
-    rep.consistency = compare_reconstructions(chosen, checks, o.suspect_rotation_deg, o.suspect_centre_fraction);
+    const std::vector<io::ColmapModel> checks(runs.begin() + 1, runs.end());
+    rep.first_run_suspect = compare_reconstructions(chosen, checks, o.suspect_rotation_deg, o.suspect_centre_fraction).suspect;
+    const size_t pick = choose_most_consistent(runs, size_t(needed), o.suspect_rotation_deg, o.suspect_centre_fraction, &rep.consistency);
+    if (pick != 0) {
+      chosen = runs[pick];
+      best_model = dirs[pick];
+      rep.chosen_seed = seeds[pick];
+      rep.registered = int(chosen.images.size());
+      rep.points = int(chosen.points.size());
+    }
     rep.consistency.check_runs = o.check_runs;  // a run that reconstructed nothing counts too
     rep.consistency.seconds = platform::now_seconds() - t0;
     if (progress) {
       const SfmConsistency& c = rep.consistency;
       char line[256];
+      if (rep.chosen_seed != 0) {
+        std::snprintf(line, sizeof line, "      consistency check: the first mapping had %d suspect view(s); the run of seed %d agrees with the others best and is used",
+                      rep.first_run_suspect, rep.chosen_seed);
+        progress(line);
+      }
       std::snprintf(line, sizeof line, "      consistency check: %d suspect view(s) of %d; the runs agree to %.2f deg (median), %.2f (max) in %.0f s",
                     c.suspect, rep.registered, c.rotation_median_deg, c.rotation_max_deg, c.seconds);
       progress(line);

@@ -103,6 +103,8 @@ nlohmann::json report_json(const IngestReport& r, const IngestOptions& o) {
                               {"mapping", r.colmap.seconds_mapping},
                               {"undistortion", r.colmap.seconds_undistort}}}};
   j["colmap"]["consistency"] = consistency_json(r.colmap.consistency, o.colmap);
+  j["colmap"]["consistency"]["mapping_seed"] = r.colmap.chosen_seed;
+  j["colmap"]["consistency"]["first_mapping_suspect"] = r.colmap.first_run_suspect;
   j["seconds"] = {{"analyse", r.seconds_analyse}, {"write", r.seconds_write}, {"total", r.seconds_total}};
   return j;
 }

@@ -70,6 +70,8 @@ Status init_poses_by_sfm(const std::vector<const io::Image8*>& images, const std
   rep.registered_views.assign(cams->size(), 0);
   for (const auto& rp : rec_poses) rep.registered_views[rp.first] = 1;
   rep.consistency = crep.consistency;
+  rep.chosen_seed = crep.chosen_seed;
+  rep.first_run_suspect = crep.first_run_suspect;
   rep.suspect_views.assign(cams->size(), 0);
   rep.disagreement_deg.assign(cams->size(), 0.0);
   for (const ViewAgreement& v : crep.consistency.views) {

@@ -107,6 +107,8 @@ Status TrainSession::Impl::init_by_sfm(const std::string& work_dir, const TrainP
   sfm_init = {{"seconds", rep.seconds},           {"registered", rep.registered_views},
               {"not_registered", unregistered},
               {"suspect_by_consistency_check", doubted},
+              {"mapping_seed", rep.chosen_seed},
+              {"first_mapping_suspect", rep.first_run_suspect},
               {"images", rep.images},
               {"image_width", rep.image_width},  {"image_height", rep.image_height},
               {"views", rep.views},               {"colmap_points", rep.colmap_points},

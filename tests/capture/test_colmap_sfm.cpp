@@ -202,3 +202,26 @@ TEST_CASE("consistency check: no verdict without an alignment (too few shared vi
   CHECK(c.aligned_runs == 0);
   CHECK(c.suspect == 0);
 }
+
+TEST_CASE("consistency check: of several mappings the one the others agree with most is chosen, the first on a tie") {
+  // The first mapping corrupted (6 of 20 views turned 20 degrees), three check runs sound in
+  // frames of their own: a check run is chosen, and the others doubt none of its views. With a
+  // sound first mapping nothing changes, and a run with too few images never takes part.
+  using gs::capture::choose_most_consistent;
+  const std::vector<gs::Pose> truth = ring();
+  std::vector<gs::Pose> corrupted = truth;
+  for (int i : {2, 3, 4, 5, 6, 7}) turn(&corrupted, i, 20.0);
+  const gs::io::ColmapModel sound = model_of(in_other_frame(truth));
+  SfmConsistency c;
+  const size_t pick = choose_most_consistent({model_of(corrupted), sound, model_of(truth), sound}, 10, 5.0, 0.1, &c);
+  CHECK(pick != 0);
+  CHECK(c.suspect == 0);
+  CHECK(compare_reconstructions(model_of(corrupted), {sound, model_of(truth), sound}, 5.0, 0.1).suspect == 6);
+  CHECK(choose_most_consistent({model_of(truth), sound, model_of(corrupted), sound}, 10, 5.0, 0.1, &c) == 0);
+  CHECK(c.suspect == 0);
+  // Too few images (10 needed): the sound runs that registered only 8 cannot be chosen.
+  std::vector<int> twelve;
+  for (int i = 8; i < kViews; ++i) twelve.push_back(i);
+  const gs::io::ColmapModel small = model_of(truth, twelve);
+  CHECK(choose_most_consistent({model_of(corrupted), small, small, small}, 10, 5.0, 0.1, &c) == 0);
+}

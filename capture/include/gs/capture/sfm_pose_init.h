@@ -37,6 +37,7 @@ struct SfmPoseInitReport {
   std::vector<uint8_t> suspect_views;
   std::vector<double> disagreement_deg;
   SfmConsistency consistency;
+  int chosen_seed = 0, first_run_suspect = 0;  // ColmapReport's: the mapping used, the first one's doubts
   int colmap_points = 0;
   double centre_fit_rms = 0;   // RMS of the centre fit residuals, dataset units
   double icp_median_before = 0, icp_median_after = 0;  // median NN distance of COLMAP's points, dataset units

@@ -160,6 +160,9 @@ struct SfmPoseInitResult {
   // matches place it elsewhere), and the largest rotation difference there (degrees); empty: no check.
   std::vector<uint8_t> suspect;
   std::vector<double> disagreement_deg;
+  // The mapper seed of the reconstruction used (0: the first mapping; another when the consistency
+  // check found a check run the others agree with more) and the views the first mapping had doubted.
+  int chosen_seed = 0, first_run_suspect = 0;
   // The report (results.json "sfm_init"): which images COLMAP saw ("training images" or a folder)
   // and their size, the reconstruction, and the Sim(3) fit into the dataset's frame.
   std::string images;
