@@ -145,7 +145,8 @@ struct Trainer::Impl {
   // residual wins.
   // A view moves only when a converged pose away from the given one fits clearly better
   // (kRepairRmseRatio) or better with the points preferring it (TrainOptions::judge_new_pose);
-  // else it rejoins at its given pose if the registration from it converged.
+  // else it rejoins at its given pose if the registration from it converged there, or to a pose
+  // the points contradict.
   // Views repaired (moved) by an earlier pass are registered again from their pose (the model is better
   // now) and keep the result when it converges to a lower residual.
   Status register_held(int it, int* released);
