@@ -39,6 +39,25 @@ inline ModelParamsT<float> model_params(const HybridModel& model) {
   return p;
 }
 
+// Renderer::forward that re-plans the tile pairs once when a view needs more than planned: their
+// count depends on the Gaussians' screen sizes, which training changes, so a view that needs more
+// re-plans with 1.5x headroom (a rare allocation, not a per-step one) instead of failing the run.
+// Counts the re-plans in *replans (may be null).
+inline Status forward_replanning(Renderer* renderer, platform::ThreadPool* pool, const simd::KernelTable* kernels,
+                                 const Camera& cam, const GaussianParams& gp, const RenderOptions& ro, float* rgb,
+                                 float* depth, int* replans) {
+  Status st = renderer->forward(cam, gp, ro, rgb, depth);
+  const uint64_t needed = renderer->stats().isects;
+  if (st.code() == StatusCode::kCapacityExceeded && needed > renderer->capacity().max_isects && needed < (uint64_t(1) << 31)) {
+    RenderCapacity rc = renderer->capacity();
+    rc.max_isects = size_t(std::min<uint64_t>(needed + needed / 2, (uint64_t(1) << 31) - 1));
+    GS_RETURN_IF_ERROR(renderer->init(rc, pool, kernels));
+    if (replans) ++*replans;
+    st = renderer->forward(cam, gp, ro, rgb, depth);
+  }
+  return st;
+}
+
 class FloatBackend {
  public:
   static constexpr int kChunks = 8;        // fixed MLP row partition (thread-count independent)
@@ -150,20 +169,7 @@ class FloatBackend {
 #endif
     ro.fixed_point = fixed_point_raster;
     for (int c = 0; c < 3; ++c) ro.background[c] = background[c];
-    Status st = renderer_->forward(cam, gp, ro, rgb);
-    // The tile-intersection count depends on the Gaussians' screen sizes, which training changes;
-    // when a view needs more than planned, re-plan once with 1.5x headroom (a rare allocation, not
-    // a per-step one) instead of failing the run.
-    const uint64_t needed = renderer_->stats().isects;
-    if (st.code() == StatusCode::kCapacityExceeded && needed > renderer_->capacity().max_isects &&
-        needed < (uint64_t(1) << 31)) {
-      RenderCapacity rc = renderer_->capacity();
-      rc.max_isects = size_t(std::min<uint64_t>(needed + needed / 2, (uint64_t(1) << 31) - 1));
-      GS_RETURN_IF_ERROR(renderer_->init(rc, pool_, kt_));
-      ++replans_;
-      st = renderer_->forward(cam, gp, ro, rgb);
-    }
-    return st;
+    return forward_replanning(renderer_, pool_, kt_, cam, gp, ro, rgb, nullptr, &replans_);
   }
   int replans() const { return replans_; }
   // The pool the step graph's own loops (decode, gradient scatter) run on (null: the calling thread).

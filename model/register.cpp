@@ -86,6 +86,22 @@ struct Registrar::Impl {
   double extent = 1;
 
 
+  // The start of both creations for an anchor model (its own set or a lent one): checks, options,
+  // the planned rows.
+  static Expected<std::unique_ptr<Registrar>> for_model(const model::HybridModel& model, int max_width, int max_height,
+                                                        const RegisterOptions& options, platform::ThreadPool* pool,
+                                                        const simd::KernelTable* kernels, size_t plan_anchor_rows) {
+    GS_RETURN_IF_ERROR(model.config.validate());
+    if (model.anchor_count == 0) return invalid_argument("registration: the model has no anchors");
+    GS_RETURN_IF_ERROR(check_plan(max_width, max_height, options));
+    std::unique_ptr<Registrar> r(new Registrar());
+    Impl& d = *r->impl_;
+    d.model = &model;
+    d.setup(options, pool, kernels, max_width, max_height, model.scene_extent);
+    d.planned_rows = std::max(model.anchor_count, plan_anchor_rows);
+    return r;
+  }
+
   // What both kinds of scene share at creation.
   void setup(const RegisterOptions& options, platform::ThreadPool* p, const simd::KernelTable* k, int w, int h, float e) {
     opt = options;
@@ -117,21 +133,13 @@ struct Registrar::Impl {
   }
 
   // Every render of the registrar. A lent renderer is planned for fewer tile pairs per Gaussian
-  // (kReplannedIsectsPerGaussian): when a view needs more, it is re-planned once with half again of
-  // headroom, as FloatBackend::render_params does (an allocation, rare; its own renderer is planned
-  // for 8 and is never re-planned by a register_view, which allocates nothing).
+  // (kReplannedIsectsPerGaussian) and re-plans when a view needs more (forward_replanning, as the
+  // trainer's renders do); its own renderer is planned for 8 and is never re-planned by a
+  // register_view, which allocates nothing.
   Status forward(const Camera& cam, const GaussianParams& gp, const RenderOptions& ro, float* out_rgb,
                  float* out_depth = nullptr) {
-    Status st = renderer->forward(cam, gp, ro, out_rgb, out_depth);
-    const uint64_t needed = renderer->stats().isects;
-    if (renderer != &own_renderer && st.code() == StatusCode::kCapacityExceeded &&
-        needed > renderer->capacity().max_isects && needed < (uint64_t(1) << 31)) {
-      RenderCapacity rc = renderer->capacity();
-      rc.max_isects = size_t(std::min<uint64_t>(needed + needed / 2, (uint64_t(1) << 31) - 1));
-      GS_RETURN_IF_ERROR(renderer->init(rc, pool, kernels));
-      st = renderer->forward(cam, gp, ro, out_rgb, out_depth);
-    }
-    return st;
+    if (renderer == &own_renderer) return renderer->forward(cam, gp, ro, out_rgb, out_depth);
+    return model::detail::forward_replanning(renderer, pool, kernels, cam, gp, ro, out_rgb, out_depth, nullptr);
   }
 
   // The last render's opacity, 1 - final transmittance, [H, W] of cam.
@@ -622,18 +630,12 @@ Registrar::~Registrar() = default;
 Expected<std::unique_ptr<Registrar>> Registrar::create(const model::HybridModel& model, int max_width, int max_height,
                                                        const RegisterOptions& options, platform::ThreadPool* pool,
                                                        const simd::KernelTable* kernels, size_t plan_anchor_rows) {
-  GS_RETURN_IF_ERROR(model.config.validate());
-  if (model.anchor_count == 0) return invalid_argument("registration: the model has no anchors");
-  GS_RETURN_IF_ERROR(check_plan(max_width, max_height, options));
-  std::unique_ptr<Registrar> r(new Registrar());
-  Impl& d = *r->impl_;
-  d.model = &model;
-  d.setup(options, pool, kernels, max_width, max_height, model.scene_extent);
-  const size_t cap = std::max(model.anchor_count, plan_anchor_rows);
-  d.planned_rows = cap;
+  Expected<std::unique_ptr<Registrar>> r = Impl::for_model(model, max_width, max_height, options, pool, kernels, plan_anchor_rows);
+  if (!r.ok()) return r;
+  Impl& d = *(*r)->impl_;
   // The kept Gaussians are planned by the first decode (half again of what it keeps; a pose that
   // keeps more grows the plan), not k per anchor row: a view keeps far fewer.
-  Expected<RenderCapacity> rc = model::detail::plan_model_pipeline(model, cap, max_width, max_height, 1, 1, pool, d.kernels,
+  Expected<RenderCapacity> rc = model::detail::plan_model_pipeline(model, d.planned_rows, max_width, max_height, 1, 1, pool, d.kernels,
                                                             d.renderer, d.backend, d.ws, /*training=*/false,
                                                             /*isects_per_gaussian=*/8, /*visible_rows=*/0, /*gaussians=*/1);
   if (!rc.ok()) return rc.status();
@@ -648,20 +650,15 @@ Expected<std::unique_ptr<Registrar>> RegistrarSharing::create(const model::Hybri
                                                               const simd::KernelTable* kernels, size_t plan_anchor_rows,
                                                               Renderer* renderer, model::detail::FloatBackend* backend,
                                                               model::StepWorkspace<float>* ws) {
-  GS_RETURN_IF_ERROR(model.config.validate());
-  if (model.anchor_count == 0) return invalid_argument("registration: the model has no anchors");
-  GS_RETURN_IF_ERROR(check_plan(max_width, max_height, options));
   if (!renderer || !backend || !ws) return invalid_argument("registration: a lent renderer, backend and workspace are all needed");
-  if (ws->capacity < std::max(model.anchor_count, plan_anchor_rows))
+  Expected<std::unique_ptr<Registrar>> r =
+      Registrar::Impl::for_model(model, max_width, max_height, options, pool, kernels, plan_anchor_rows);
+  if (!r.ok()) return r;
+  Registrar::Impl& d = *(*r)->impl_;
+  if (ws->capacity < d.planned_rows)
     return invalid_argument("registration: the lent workspace holds fewer anchor rows than planned");
-  const RenderCapacity& rc = renderer->capacity();
-  if (rc.max_width < max_width || rc.max_height < max_height)
+  if (renderer->capacity().max_width < max_width || renderer->capacity().max_height < max_height)
     return invalid_argument("registration: the lent renderer is planned for smaller images");
-  std::unique_ptr<Registrar> r(new Registrar());
-  Registrar::Impl& d = *r->impl_;
-  d.model = &model;
-  d.setup(options, pool, kernels, max_width, max_height, model.scene_extent);
-  d.planned_rows = std::max(model.anchor_count, plan_anchor_rows);
   d.renderer = renderer;
   d.backend = backend;
   d.ws = ws;

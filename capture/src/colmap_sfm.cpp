@@ -185,8 +185,11 @@ std::vector<std::string> SfmConsistency::suspect_names() const {
   return out;
 }
 
-SfmConsistency compare_reconstructions(const io::ColmapModel& chosen, const std::vector<io::ColmapModel>& checks,
-                                       double suspect_rotation_deg, double suspect_centre_fraction) {
+namespace {
+// compare_reconstructions on the check runs in place (choose_most_consistent compares each run with
+// all the others without copying models).
+SfmConsistency compare_to_runs(const io::ColmapModel& chosen, const std::vector<const io::ColmapModel*>& checks,
+                               double suspect_rotation_deg, double suspect_centre_fraction) {
   SfmConsistency c;
   c.check_runs = int(checks.size());
   std::map<std::string, size_t> index;  // name -> row of c.views
@@ -200,7 +203,8 @@ SfmConsistency compare_reconstructions(const io::ColmapModel& chosen, const std:
   double scene_centre[3], radius = 1;
   pose::scene_frame(poses.data(), poses.size(), scene_centre, &radius);
 
-  for (const io::ColmapModel& check : checks) {
+  for (const io::ColmapModel* check_run : checks) {
+    const io::ColmapModel& check = *check_run;
     std::vector<size_t> rows;
     std::vector<Pose> other;
     std::vector<double> x, y;  // centres: check run, chosen
@@ -243,16 +247,26 @@ SfmConsistency compare_reconstructions(const io::ColmapModel& chosen, const std:
   return c;
 }
 
+}  // namespace
+
+SfmConsistency compare_reconstructions(const io::ColmapModel& chosen, const std::vector<io::ColmapModel>& checks,
+                                       double suspect_rotation_deg, double suspect_centre_fraction) {
+  std::vector<const io::ColmapModel*> runs;
+  for (const io::ColmapModel& m : checks) runs.push_back(&m);
+  return compare_to_runs(chosen, runs, suspect_rotation_deg, suspect_centre_fraction);
+}
+
 size_t choose_most_consistent(const std::vector<io::ColmapModel>& runs, size_t min_registered, double suspect_rotation_deg,
-                              double suspect_centre_fraction, SfmConsistency* consistency) {
+                              double suspect_centre_fraction, SfmConsistency* consistency, int* first_suspect) {
   size_t best = 0;
   bool have = false;
   for (size_t i = 0; i < runs.size(); ++i) {
     if (runs[i].images.size() < min_registered && i > 0) continue;
-    std::vector<io::ColmapModel> others;
+    std::vector<const io::ColmapModel*> others;
     for (size_t j = 0; j < runs.size(); ++j)
-      if (j != i) others.push_back(runs[j]);
-    SfmConsistency c = compare_reconstructions(runs[i], others, suspect_rotation_deg, suspect_centre_fraction);
+      if (j != i) others.push_back(&runs[j]);
+    SfmConsistency c = compare_to_runs(runs[i], others, suspect_rotation_deg, suspect_centre_fraction);
+    if (i == 0 && first_suspect) *first_suspect = c.suspect;
     const bool better = !have || c.suspect < consistency->suspect ||
                         (c.suspect == consistency->suspect && runs[i].images.size() > runs[best].images.size());
     if (better) best = i, have = true, *consistency = std::move(c);
@@ -366,11 +380,10 @@ Status run_colmap_reconstruction(const std::string& frames_dir, const std::strin
       seeds.push_back(seed);
       dirs.push_back(dir);
     }
-    const std::vector<io::ColmapModel> checks(runs.begin() + 1, runs.end());
-    rep.first_run_suspect = compare_reconstructions(chosen, checks, o.suspect_rotation_deg, o.suspect_centre_fraction).suspect;
-    const size_t pick = choose_most_consistent(runs, size_t(needed), o.suspect_rotation_deg, o.suspect_centre_fraction, &rep.consistency);
+    const size_t pick = choose_most_consistent(runs, size_t(needed), o.suspect_rotation_deg, o.suspect_centre_fraction,
+                                               &rep.consistency, &rep.first_run_suspect);
     if (pick != 0) {
-      chosen = runs[pick];
+      chosen = std::move(runs[pick]);
       best_model = dirs[pick];
       rep.chosen_seed = seeds[pick];
       rep.registered = int(chosen.images.size());

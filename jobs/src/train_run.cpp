@@ -287,8 +287,7 @@ nlohmann::json TrainRun::held_back_json() const {
     const bool unreg = i < d_->sfm_registered.size() && !d_->sfm_registered[i];
     const bool doubted = i < d_->sfm_suspect.size() && d_->sfm_suspect[i];
     const bool susp = i < d_->suspect.size() && d_->suspect[i];
-    // (held only with the view check, as the points' suspects)
-    const bool far = !d_->suspect.empty() && i < d_->alignment_doubted.size() && d_->alignment_doubted[i];
+    const bool far = i < d_->alignment_doubted.size() && d_->alignment_doubted[i];
     if (unreg) unregistered.push_back(d_->train_names[i]);
     if (doubted) sfm_doubted.push_back(d_->train_names[i]);
     if (susp) suspect.push_back(d_->train_names[i]);

@@ -128,6 +128,8 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
       return state->points_judge(v, given, moved);
     };
   }
+  // The point alignment's doubts hold views only with the view check (the one switch for both).
+  if (!(options.view_check && points_meaningful)) d.alignment_doubted.clear();
   if (options.view_check && points_meaningful && !options.resume) {
     std::vector<uint8_t>& held = resolved->train.held_back_views;
     if (held.empty()) held.assign(d.train_views.size(), 0);
@@ -136,7 +138,7 @@ Expected<std::unique_ptr<TrainSession>> TrainSession::create(const TrainRunOptio
     // move exactly that view over 3x the median, while its points still agreed at half the typical
     // margin (not suspect); docs/POSES.md has the other runs.
     for (size_t i = 0; i < held.size(); ++i)
-      held[i] = held[i] || d.suspect[i] || (i < d.alignment_doubted.size() && d.alignment_doubted[i]);
+      held[i] = held[i] || d.suspect[i] || (!d.alignment_doubted.empty() && d.alignment_doubted[i]);
     if (std::find(held.begin(), held.end(), uint8_t(0)) == held.end()) {
       say(text_event(TrainEvent::kNote, "every training view is suspect or unregistered: the view check holds none back"));
       for (size_t i = 0; i < held.size(); ++i) held[i] = d.held_by_sfm(i);

@@ -39,7 +39,8 @@ struct TrainSession::Impl {
     return i < sfm_registered.size() && (!sfm_registered[i] || (i < sfm_suspect.size() && sfm_suspect[i]));
   }
   // [training views] 1 where the point alignment moved the view over 3x the median move (it was
-  // put back at its start pose): a pose in doubt, held back with the view check's suspects.
+  // put back at its start pose): a pose in doubt, held back with the view check's suspects (empty
+  // when the check is off or the alignment did not run).
   std::vector<uint8_t> alignment_doubted;
   nlohmann::json view_check;                 // the point-agreement check's report for results.json
   std::vector<uint8_t> suspect;              // [training views] 1 where the points say the pose is wrong

@@ -106,9 +106,10 @@ struct ColmapReport {
 // suspect views wins, then more registered views, then the earlier one (index 0 on a tie). A
 // corrupted first mapping (13 of 35 views doubted once in the end-to-end test, 11.9 degrees mean)
 // is then replaced by a sound check run instead of training on it. Only reconstructions with at
-// least min_registered images take part. Returns the index; *consistency is its comparison.
+// least min_registered images take part (index 0 always does). Returns the index; *consistency is
+// its comparison, *first_suspect (when not null) the suspect count of index 0.
 size_t choose_most_consistent(const std::vector<io::ColmapModel>& runs, size_t min_registered, double suspect_rotation_deg,
-                              double suspect_centre_fraction, SfmConsistency* consistency);
+                              double suspect_centre_fraction, SfmConsistency* consistency, int* first_suspect = nullptr);
 
 // Where progress lines go ("[2/4] matching (sequential) ..."); may be empty.
 using ProgressFn = std::function<void(const std::string&)>;
