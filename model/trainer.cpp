@@ -334,13 +334,12 @@ Status Trainer::Impl::register_held(int it, int* released) {
     }
     // A new pose only on clear evidence: it converged away from the given pose AND fits the photo
     // much better than the given pose does (a turned view: 0.20-0.27 -> 0.08-0.09 RMSE on the
-    // built-in scene). A correct view the points doubted (snowmiku_plush's close-ups behind the
-    // wardrobe door) registers against a model that has not seen what it shows: there, moves of
-    // 3-12 degrees improved the RMSE by 1-15 % and adopting them cost 0.5 dB. Such a view rejoins at
-    // its given pose when the registration from it converged (the model agrees it fits there), and
-    // stays held otherwise.
-    // Or when the points clearly prefer the new pose and it fits better at all: a view SfM placed
-    // 8 degrees off registered to its true pose at a ratio of only 0.77 in a 200-iteration run.
+    // built-in scene), unless the points contradict it there. A correct view the points doubted
+    // (snowmiku_plush's close-ups behind the wardrobe door) registers against a model that has not
+    // seen what it shows: there, moves of 3-12 degrees improved the RMSE by 1-15 % and adopting them
+    // cost 0.5 dB. Or when the points clearly prefer the new pose and it fits better at all: a view
+    // SfM placed 8 degrees off registered to its true pose at a ratio of only 0.77 in a
+    // 200-iteration run.
     // The given pose is confirmed when the registration from it converged and stayed there, or
     // when the alternative the model found is one the points contradict (snowmiku_plush's door
     // views). An alternative the points accept but that does not fit clearly better leaves the view
