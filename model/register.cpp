@@ -12,6 +12,7 @@
 #include "pose_solve.h"
 #include "cloud_decode.h"
 #include "float_backend.h"
+#include "image_descriptor.h"
 #include "register_sharing.h"
 #include "gs/io/image.h"
 #include "gs/model/step_graph.h"
@@ -80,8 +81,19 @@ struct Registrar::Impl {
   // box-filtered level copies, and the target at the level.
   std::vector<float> key_rgb, key_depth, key_alpha, lvl_rgb, lvl_depth, lvl_alpha, fin_alpha;
   bool polish_render_valid = false;  // rgb / fin_alpha hold the polish's render at the pose it returned
+  // Relocalisation candidates (set_candidates): poses, their renders' grey descriptors [count,
+  // desc_dim] at 1/desc_factor of cand_intr, the image's descriptor and the ranking (reserved).
+  std::vector<Pose> cand;
+  std::vector<float> cand_desc, image_desc;
+  std::vector<std::pair<float, int>> ranked;
+  PinholeIntrinsics cand_intr{};
+  int desc_factor = 1;
+  size_t desc_dim = 0;
   int max_w = 0, max_h = 0;
   size_t planned_rows = 0;
+
+  Status register_once(const uint8_t* rgb, const PinholeIntrinsics& intr, const Pose& init, double deadline,
+                       RegisterResult* out);
   uint64_t bytes = 0;
   double extent = 1;
 
@@ -721,12 +733,93 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
     return capacity_exceeded("registration: the model has more anchors than planned");
   if (d.cloud && d.cloud->size() > d.cloud_decoder.capacity())
     return capacity_exceeded("registration: the cloud has more Gaussians than planned");
+  if (Status st = validate_camera(Camera{intr, init}); !st.ok())
+    return invalid_argument("registration: start pose or camera: " + st.message());
+  const double t0 = platform::now_seconds();
+  const double deadline = d.opt.time_budget_ms > 0 ? t0 + 1e-3 * d.opt.time_budget_ms : 0.0;
+  GS_RETURN_IF_ERROR(d.register_once(rgb, intr, init, deadline, out));
+  const bool relocalize = !out->converged() && out->verdict != RegisterVerdict::kTimeBudget && d.opt.relocalize_candidates > 0 &&
+                          !d.cand.empty() && intr.width == d.cand_intr.width && intr.height == d.cand_intr.height;
+  if (relocalize) {
+    // The candidates most like the image, best first; the first that converges wins, else the
+    // start's result stands.
+    io::box_downsample_rgb(rgb, intr.width, intr.height, d.desc_factor, d.lvl_rgb.data());
+    detail::grey_descriptor(d.lvl_rgb.data(), d.desc_dim, d.image_desc.data());
+    d.ranked.clear();
+    for (size_t i = 0; i < d.cand.size(); ++i) {
+      const float* c = d.cand_desc.data() + i * d.desc_dim;
+      double dot = 0;
+      for (size_t k = 0; k < d.desc_dim; ++k) dot += double(c[k]) * d.image_desc[k];
+      d.ranked.emplace_back(float(1.0 - dot), int(i));
+    }
+    const size_t tries = std::min(d.ranked.size(), size_t(d.opt.relocalize_candidates));
+    std::partial_sort(d.ranked.begin(), d.ranked.begin() + std::ptrdiff_t(tries), d.ranked.end());
+    // Every ranked candidate is tried and the converged result that fits best wins: a look-alike pose
+    // (the far side of a symmetric object) can converge too, with a worse fit than the true one.
+    int iterations = out->iterations, attempts = 0;
+    RegisterResult best;
+    for (size_t k = 0; k < tries && !(deadline > 0 && platform::now_seconds() > deadline); ++k) {
+      const int id = d.ranked[k].second;
+      RegisterResult r;
+      GS_RETURN_IF_ERROR(d.register_once(rgb, intr, d.cand[size_t(id)], deadline, &r));
+      iterations += r.iterations;
+      ++attempts;
+      if (r.converged() && (best.relocalized_from < 0 || r.final_rmse < best.final_rmse)) {
+        best = r;
+        best.relocalized_from = id;
+      }
+    }
+    if (best.relocalized_from >= 0) {
+      best.initial_rmse = out->initial_rmse;
+      *out = best;
+    }
+    out->iterations = iterations;
+    out->relocalize_attempts = attempts;
+  }
+  out->milliseconds = 1e3 * (platform::now_seconds() - t0);
+  return Status::Ok();
+}
+
+Status Registrar::set_candidates(const std::vector<Pose>& poses, const PinholeIntrinsics& intr) {
+  Impl& d = *impl_;
+  if (!poses.empty() && (intr.width > d.max_w || intr.height > d.max_h || intr.width < 1 || intr.height < 1))
+    return invalid_argument("registration candidates: " + std::to_string(intr.width) + "x" + std::to_string(intr.height) +
+                            " is not within the planned " + std::to_string(d.max_w) + "x" + std::to_string(d.max_h));
+  d.cand.clear();  // on an error below, no candidates are left
+  d.cand_desc.clear();
+  if (poses.empty()) return Status::Ok();
+  // The descriptor's grid: the largest whole divisor that keeps at least kDescriptorWidth x
+  // kDescriptorHeight cells (an image smaller than that is described at its own size).
+  d.desc_factor = std::max(1, std::min(intr.width / detail::kDescriptorWidth, intr.height / detail::kDescriptorHeight));
+  const int dw = intr.width / d.desc_factor, dh = intr.height / d.desc_factor;
+  d.desc_dim = size_t(dw) * size_t(dh);
+  d.cand_desc.assign(poses.size() * d.desc_dim, 0.0f);
+  d.image_desc.assign(d.desc_dim, 0.0f);
+  d.ranked.clear();
+  d.ranked.reserve(poses.size());
+  for (size_t i = 0; i < poses.size(); ++i) {
+    const Camera cam{intr, poses[i]};
+    if (Status st = validate_camera(cam); !st.ok())
+      return invalid_argument("registration candidate " + std::to_string(i) + ": " + st.message());
+    GS_RETURN_IF_ERROR(render(cam, d.key_rgb.data()));
+    io::box_downsample_float(d.key_rgb.data(), intr.width, intr.height, 3, d.desc_factor, d.lvl_rgb.data());
+    detail::grey_descriptor(d.lvl_rgb.data(), d.desc_dim, d.cand_desc.data() + i * d.desc_dim);
+  }
+  d.key_valid = false;  // key_rgb held the candidates' renders
+  d.cand = poses;
+  d.cand_intr = intr;
+  return Status::Ok();
+}
+
+// One registration from init (the caller checked the sizes and the start): the pyramid, the solver,
+// the polish and the verdict. deadline: 0 or the platform::now_seconds() to stop at.
+Status Registrar::Impl::register_once(const uint8_t* rgb, const PinholeIntrinsics& intr, const Pose& init, double deadline,
+                                      RegisterResult* out) {
+  Impl& d = *this;
   const Camera full{intr, init};
-  if (Status st = validate_camera(full); !st.ok()) return invalid_argument("registration: start pose or camera: " + st.message());
   const RegisterOptions& o = d.opt;
   const double t0 = platform::now_seconds();
   d.decoded_valid = d.key_valid = d.polish_render_valid = false;  // the model may have changed since the last call
-  const double deadline = o.time_budget_ms > 0 ? t0 + 1e-3 * o.time_budget_ms : 0.0;
   *out = RegisterResult();
   out->pose = init;
 

@@ -61,9 +61,10 @@ int run_batch(const RegisterArgs& args) {
   const gs::jobs::RegisterRunOptions& a = args.options;
   auto progress = [&](const gs::jobs::RegisteredView& v, size_t k, size_t n) {
     if (args.quiet) return;
-    std::fprintf(stderr, "[%zu/%zu] %s: rotation %.2f -> %.3f deg, translation %.3f -> %.4f r, %s, %d it, %.0f ms\n", k, n,
+    std::fprintf(stderr, "[%zu/%zu] %s: rotation %.2f -> %.3f deg, translation %.3f -> %.4f r, %s%s%s, %d it, %.0f ms\n", k, n,
                  v.name.c_str(), v.initial_rotation_deg, v.rotation_deg, v.initial_translation_fraction, v.translation_fraction,
-                 gs::pose::verdict_name(v.result.verdict), v.result.iterations, v.result.milliseconds);
+                 gs::pose::verdict_name(v.result.verdict), v.relocalized_from.empty() ? "" : " (relocalised from ",
+                 v.relocalized_from.empty() ? "" : (v.relocalized_from + ")").c_str(), v.result.iterations, v.result.milliseconds);
   };
   gs::jobs::RegisterViewsSummary s;
   if (gs::Status st = gs::jobs::register_views(a, progress, &s); !st.ok()) return failed(st);
@@ -76,6 +77,9 @@ int run_batch(const RegisterArgs& args) {
   std::printf("  final: median rotation %.4f deg, median translation %.4g (%.5f of the radius)\n", s.median_rotation_deg,
               s.median_translation, s.median_translation / radius);
   std::printf("  success (< 1 deg and < 1%% of the radius) %zu/%zu, converged verdict %zu/%zu\n", s.success, n, s.converged, n);
+  if (a.relocalize > 0)
+    std::printf("  relocalised from other views (%zu candidates, up to %d tried per view): %zu\n", s.candidates, a.relocalize,
+                s.relocalized);
   std::printf("  time per view: median %.1f ms, mean %.1f ms (total %.1f s)\n", s.median_ms, s.mean_ms, s.total_seconds);
   std::printf("  images: PSNR %.2f dB / SSIM %.4f at the start poses, %.2f dB / %.4f at the registered poses\n",
               s.psnr_at_start, s.ssim_at_start, s.psnr_registered, s.ssim_registered);
@@ -148,6 +152,12 @@ Command add_register_command(CLI::App& parent) {
   sub->add_option("--time-budget-ms", o->time_budget_ms, "Stop a view after this many ms, keeping the best pose (0: none)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e9));
+  sub->add_option("--relocalize", o->relocalize,
+                  "Batch mode: a view that does not converge from its start is registered again from this many of the "
+                  "dataset's views outside the split (training views for --views test), those whose renders look most "
+                  "like it (0: never)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1000));
   sub->add_option("--threads", o->threads, "Worker threads (0: all CPUs)")->capture_default_str()->check(CLI::Range(0, 4096));
   sub->add_flag("-q,--quiet", args->quiet, "No per-view progress lines");
   return {sub, [args] { return run_register(*args); }};

@@ -120,6 +120,8 @@ Expected<pose::RegisterOptions> register_options(const RegisterRunOptions& a) {
   o.finest_downscale = a.downscale;
   o.time_budget_ms = a.time_budget_ms;
   o.fixed_point = a.fixed_point;
+  if (a.relocalize < 0) return invalid_argument("--relocalize must be 0 or positive");
+  o.relocalize_candidates = a.relocalize;
   return o;
 }
 
@@ -257,7 +259,7 @@ namespace {
 // Registers each view of the split (dataset indices `index`) from its start pose against its true
 // pose; rows[k] and estimated[k] belong to ds.views[index[k]].
 Status register_split(pose::Registrar& reg, const io::Dataset& ds, const std::vector<size_t>& index, const PoseTruth& truth,
-                      const float background[3], const std::function<void(const RegisteredView&, size_t, size_t)>& progress,
+                      const std::vector<size_t>& candidates, const float background[3], const std::function<void(const RegisteredView&, size_t, size_t)>& progress,
                       std::vector<RegisteredView>* rows, std::vector<Pose>* estimated) {
   const double radius = truth.radius * truth.unit;  // user units, as the distances below
   for (size_t k = 0; k < index.size(); ++k) {
@@ -270,6 +272,7 @@ Status register_split(pose::Registrar& reg, const io::Dataset& ds, const std::ve
     const io::Image8 photo = io::composite_rgb8(v.image, v.mask, background);  // a copy only when masked
     if (Status st = reg.register_view(photo.pixels.data(), v.camera.intr, v.camera.pose, &row.result); !st.ok())
       return Status(st.code(), "view " + v.name + ": " + st.message());
+    if (row.result.relocalized_from >= 0) row.relocalized_from = ds.views[candidates[size_t(row.result.relocalized_from)]].name;
     row.rotation_deg = pose::rotation_error_deg(row.result.pose, gt);
     row.translation = centre_distance(row.result.pose, gt) * truth.unit;
     row.success = row.rotation_deg < 1.0 && row.translation < 0.01 * radius;
@@ -304,7 +307,7 @@ Status evaluate_split(const ModelViews& loaded, io::Dataset& ds, const std::vect
 // The split's figures over its rows.
 struct SplitFigures {
   std::vector<double> rot, trans, init_rot, init_trans, ms;
-  size_t success = 0, converged = 0;
+  size_t success = 0, converged = 0, relocalized = 0;
 };
 SplitFigures split_figures(const std::vector<RegisteredView>& rows) {
   SplitFigures f;
@@ -316,6 +319,7 @@ SplitFigures split_figures(const std::vector<RegisteredView>& rows) {
     f.ms.push_back(row.result.milliseconds);
     f.success += row.success;
     f.converged += row.result.converged();
+    f.relocalized += !row.relocalized_from.empty();
   }
   return f;
 }
@@ -332,6 +336,8 @@ nlohmann::ordered_json registered_views_json(const std::vector<RegisteredView>& 
                   {"translation_fraction", row.translation / radius},
                   {"success", row.success},
                   {"verdict", pose::verdict_name(row.result.verdict)},
+                  {"relocalized_from", row.relocalized_from.empty() ? nlohmann::ordered_json() : nlohmann::ordered_json(row.relocalized_from)},
+                  {"relocalize_attempts", row.result.relocalize_attempts},
                   {"initial_rmse", row.result.initial_rmse},
                   {"final_rmse", row.result.final_rmse},
                   {"explained", row.result.explained},
@@ -347,7 +353,7 @@ nlohmann::ordered_json registered_views_json(const std::vector<RegisteredView>& 
 nlohmann::ordered_json register_views_json(const RegisterRunOptions& a, const ModelViews& loaded, const std::string& noise,
                                            int threads, double radius, const std::vector<RegisteredView>& rows,
                                            const SplitFigures& f, const model::EvalResult& m_start,
-                                           const model::EvalResult& m_reg, double seconds) {
+                                           const model::EvalResult& m_reg, double seconds, size_t candidates) {
   const double n = double(rows.size());
   nlohmann::ordered_json jsum = {{"views", rows.size()},
                                  {"median_initial_rotation_deg", median(f.init_rot)},
@@ -358,6 +364,7 @@ nlohmann::ordered_json register_views_json(const RegisterRunOptions& a, const Mo
                                  {"median_translation_fraction", median(f.trans) / radius},
                                  {"success_rate", double(f.success) / n},
                                  {"converged_rate", double(f.converged) / n},
+                                 {"relocalized", f.relocalized},
                                  {"psnr_at_start_poses", m_start.psnr},
                                  {"ssim_at_start_poses", m_start.ssim},
                                  {"psnr_registered", m_reg.psnr},
@@ -373,6 +380,8 @@ nlohmann::ordered_json register_views_json(const RegisterRunOptions& a, const Mo
           {"solver", a.solver},
           {"downscale", a.downscale},
           {"time_budget_ms", a.time_budget_ms},
+          {"relocalize", a.relocalize},
+          {"relocalize_candidates", candidates},
           {"threads", threads},
           {"anchors", loaded.model.anchor_count},
           {"scene_radius", radius},
@@ -435,9 +444,24 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
                     : pose::Registrar::create(loaded->model, max_w, max_h, *ro, &pool);
   if (!reg.ok()) return reg.status();
   const double t0 = platform::now_seconds();
+  // Relocalisation candidates: the views outside the split, at their dataset poses (never a view's
+  // own pose), when they share the split's image size.
+  std::vector<size_t> cand_index;
+  if (a.relocalize > 0 && !index.empty()) {
+    const PinholeIntrinsics& intr = ds.views[index[0]].camera.intr;
+    std::vector<Pose> poses;
+    for (size_t i = 0, k = 0; i < ds.views.size(); ++i) {
+      if (k < index.size() && index[k] == i) { ++k; continue; }
+      const PinholeIntrinsics& ci = ds.views[i].camera.intr;
+      if (ci.width != intr.width || ci.height != intr.height) continue;
+      cand_index.push_back(i);
+      poses.push_back(truth.poses[i]);
+    }
+    GS_RETURN_IF_ERROR((*reg)->set_candidates(poses, intr));
+  }
   const double radius = truth.radius * truth.unit;
   std::vector<Pose> estimated;
-  GS_RETURN_IF_ERROR(register_split(**reg, ds, index, truth, background->rgb, progress, &s.views, &estimated));
+  GS_RETURN_IF_ERROR(register_split(**reg, ds, index, truth, cand_index, background->rgb, progress, &s.views, &estimated));
   reg->reset();  // its arena is not needed for the metrics below (peak memory: one renderer at a time)
 
   model::EvalOptions eo;
@@ -449,7 +473,7 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
 
   const SplitFigures f = split_figures(s.views);
   const nlohmann::ordered_json j = register_views_json(a, *loaded, pose::describe(noise), pool.num_threads(), radius, s.views, f,
-                                                       m_start, m_reg, platform::now_seconds() - t0);
+                                                       m_start, m_reg, platform::now_seconds() - t0, cand_index.size());
   GS_RETURN_IF_ERROR(platform::make_dirs(out));
   const std::string json_path = (fs::path(out) / kRegisterJson).string();
   const std::string text = j.dump(2) + "\n";
@@ -469,6 +493,8 @@ Status register_views(const RegisterRunOptions& a, const std::function<void(cons
   s.median_translation = median(f.trans);
   s.success = f.success;
   s.converged = f.converged;
+  s.relocalized = f.relocalized;
+  s.candidates = cand_index.size();
   s.median_ms = median(f.ms);
   s.mean_ms = mean(f.ms);
   s.total_seconds = platform::now_seconds() - t0;

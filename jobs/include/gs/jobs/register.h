@@ -36,6 +36,11 @@ struct RegisterRunOptions {
   std::string image, init, camera;
   // A split ("test", "train" or "all"): the start-pose noise and the output folder ("" : <run>/register).
   std::string views, init_noise = "rot:10,trans:0.1", out;
+  // Batch mode: a view that does not converge from its start is registered again from the poses of
+  // the dataset's views outside the split (the training views for "test", the test views for
+  // "train"; none for "all") whose renders look most like it, up to this many (0: never;
+  // RegisterOptions::relocalize_candidates).
+  int relocalize = 3;
 };
 
 // register_image refuses a start pose whose camera centre is farther than this many scene radii from
@@ -65,6 +70,7 @@ struct RegisteredView {
   double initial_translation_fraction = 0, translation_fraction = 0;  // the translations / scene radius
   bool success = false;  // < 1 degree and < 1 % of the scene radius
   pose::RegisterResult result;
+  std::string relocalized_from;  // the candidate view the pose was registered from ("" : the start)
 };
 struct RegisterViewsSummary {
   ModelSource source;
@@ -73,7 +79,7 @@ struct RegisterViewsSummary {
   double scene_radius = 1;
   double median_initial_rotation_deg = 0, median_initial_translation = 0;
   double median_rotation_deg = 0, median_translation = 0;
-  size_t success = 0, converged = 0;
+  size_t success = 0, converged = 0, relocalized = 0, candidates = 0;
   double median_ms = 0, mean_ms = 0, total_seconds = 0;
   double psnr_at_start = 0, ssim_at_start = 0, psnr_registered = 0, ssim_registered = 0;
   int threads = 0;

@@ -27,6 +27,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "gs/camera.h"
 #include "gs/gaussians.h"
@@ -84,6 +85,12 @@ struct RegisterOptions {
   // at least min_coverage of the image (mean opacity of the render), and the pose moved at most
   // max_rotation_deg / max_translation (x scene extent) from the start.
   double max_rmse = 0.15, min_explained = 0.55, min_coverage = 0.05, max_rotation_deg = 45, max_translation = 1.0;
+  // Relocalisation (Registrar::set_candidates): a view that does not converge from its start (any
+  // verdict but converged and time_budget) is registered again from this many candidate poses, the
+  // ones whose renders look most like the image (a small grey image descriptor, normalised
+  // cross-correlation); of those that converge, the one with the lowest final RMSE is returned
+  // (a look-alike pose may converge too, with a worse fit). 0: never.
+  int relocalize_candidates = 3;
 };
 
 enum class RegisterVerdict {
@@ -105,7 +112,12 @@ struct RegisterResult {
   double explained = 0;       // 1 - MSE / variance of the image (finest level; 0 for a flat image)
   int iterations = 0;         // solver steps over all levels
   int levels = 0;
-  double milliseconds = 0;
+  double milliseconds = 0;    // the whole call, relocalisation included
+  // The candidate (index into set_candidates' poses) the pose was registered from, when the start
+  // did not converge and a candidate did; -1: registered from the start pose. Then iterations count
+  // every attempt, and initial_rmse is still the start pose's.
+  int relocalized_from = -1;
+  int relocalize_attempts = 0;  // candidates tried
   bool converged() const { return verdict == RegisterVerdict::kConverged; }
 };
 
@@ -132,6 +144,13 @@ class Registrar {
   // resolution, the image's size) from the start pose init. Errors (not verdicts): wrong sizes,
   // an image larger than planned, an invalid camera or start pose. Allocates nothing.
   Status register_view(const uint8_t* rgb, const PinholeIntrinsics& intr, const Pose& init, RegisterResult* result);
+
+  // Candidate poses for relocalisation (e.g. a dataset's other views; RegisterOptions::
+  // relocalize_candidates), seen with intrinsics intr: the images that will be registered must have
+  // intr's size (a view of another size is not relocalised). Each candidate is rendered once at intr
+  // and described (model/image_descriptor.h); this call allocates, register_view does not. An
+  // empty list removes them.
+  Status set_candidates(const std::vector<Pose>& poses, const PinholeIntrinsics& intr);
 
   // Renders the model at cam (at most the planned size) with the registrar's own decode and
   // renderer, as its keyframes are: colour rgb [H, W, 3] and, when not null, the alpha-weighted
