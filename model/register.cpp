@@ -68,6 +68,7 @@ struct Registrar::Impl {
   RegisterOptions opt;
   platform::ThreadPool* pool = nullptr;
   const simd::KernelTable* kernels = nullptr;
+  simd::KernelTable portable_kernels{};  // fixed_point: the table with the reference float decode and projection
   // The renderer, decode backend and workspace: the registrar's own, or lent by a trainer
   // (RegistrarSharing: registration runs between its steps, so one set serves both).
   Renderer own_renderer;
@@ -119,6 +120,15 @@ struct Registrar::Impl {
     opt = options;
     pool = p;
     kernels = k ? k : &simd::best_kernel_table();
+    if (options.fixed_point) {
+      // The same poses on every CPU: the fixed-point blending is bit-identical across tables, and
+      // the float kernels before it (decoder MLPs, projection) run their scalar references, whose
+      // SIMD variants round differently (0.001-0.0025 degrees apart after a tracked path).
+      portable_kernels = *kernels;
+      portable_kernels.mlp_fwd = simd::ref_kernel_table().mlp_fwd;
+      portable_kernels.project_fwd = simd::ref_kernel_table().project_fwd;
+      kernels = &portable_kernels;
+    }
     max_w = w;
     max_h = h;
     extent = e;
