@@ -9,7 +9,10 @@
 #      track_video (the scene's images as frames), train_with_progress;
 #   3. examples/render_to_png built with plain `pkg-config --cflags --libs hbgs` and run;
 #   4. cmake --install of the aarch64 build, examples/ cross-built against it and render_to_png run
-#      under qemu-aarch64 on the same scene and model (armhf likewise under qemu-arm when built);
+#      under qemu-aarch64 on the same scene and model (armhf likewise under qemu-arm when built), and
+#      the installed hbgs-device tracks the scene's images in fixed point under qemu: its poses must
+#      be those of the native hbgs-device within 0.001 degrees and 1e-5 of the scene radius (the
+#      same frames lost);
 #   5. cpack -G DEB in each build folder: hbgs_<version>_{amd64,arm64,armhf}.deb, copied to
 #      build/packages/; the arm64 package unpacked (dpkg-deb -x) and its hbgs render run under
 #      qemu-aarch64; the amd64 package unpacked and examples/ built against it and run.
@@ -124,6 +127,10 @@ else
 fi
 "$ex/train_with_progress" "$scene" "$work/run_example" 60 | tail -n 2
 need_file "$work/run_example/model.hbgs"
+# The on-device tracker (fixed point) on the scene's images, natively: the poses the ARM builds must
+# give too (step 4).
+"$work/native/bin/hbgs-device" track "$run/model.hbgs" "$scene/images" --out "$work/track-native" --threads 2 --quiet >/dev/null
+need_file "$work/track-native/trajectory.txt"
 
 # 3. pkg-config --------------------------------------------------------------------------------------
 step "examples: render_to_png built with pkg-config --cflags --libs hbgs"
@@ -146,6 +153,40 @@ cross_examples() {  # cross_examples BUILD_DIR TRIPLE QEMU
   "$qemu" -L "/usr/$triple" "$work/ex-$triple/render_to_png" "$scene" "$run/model.hbgs" "$work/$triple-model.png" 1
   "$qemu" -L "/usr/$triple" "$work/ex-$triple/render_to_png" "$scene" "$work/points.ply" "$work/$triple-ply.png" 2
   need_file "$work/$triple-model.png" "$work/$triple-ply.png"
+  step "$triple: hbgs-device track (fixed point) under $qemu gives the native poses"
+  "$qemu" -L "/usr/$triple" "$prefix/bin/hbgs-device" track "$run/model.hbgs" "$scene/images" --out "$work/track-$triple" \
+    --threads 2 --quiet >/dev/null
+  python3 - "$work/track-native" "$work/track-$triple" "$triple" <<'EOF' || fail "$triple: tracked poses differ from the native ones"
+import math, sys
+def read(d):
+    poses = {}
+    for line in open(d + "/trajectory.txt"):
+        f = line.split()
+        if f and not f[0].startswith("#"):
+            poses[f[0]] = [float(v) for v in f[1:8]]
+    lost = [l.split()[0] for l in open(d + "/lost.txt") if l.strip() and not l.startswith("#")]
+    return poses, lost
+(a, lost_a), (b, lost_b) = read(sys.argv[1]), read(sys.argv[2])
+if sorted(a) != sorted(b) or sorted(lost_a) != sorted(lost_b):
+    sys.exit("%s: frames placed %s natively, %s here; lost %s and %s" % (sys.argv[3], sorted(a), sorted(b), lost_a, lost_b))
+centres = [p[:3] for p in a.values()]
+mean = [sum(c[k] for c in centres) / len(centres) for k in range(3)]
+radius = max(max(math.dist(c, mean) for c in centres), 1e-9)
+rot = centre = 0.0
+for t in a:
+    # The angle between the two rotations: 2 atan2(|vector part of qa* qb|, |scalar part|), exact for
+    # quaternions as printed (9 digits: not unit to the last bit, which would put acos(dot) at 3e-3 deg).
+    (x1, y1, z1, w1), (x2, y2, z2, w2) = a[t][3:], b[t][3:]
+    w = w1 * w2 + x1 * x2 + y1 * y2 + z1 * z2
+    v = (w1 * x2 - x1 * w2 - y1 * z2 + z1 * y2, w1 * y2 - y1 * w2 - z1 * x2 + x1 * z2, w1 * z2 - z1 * w2 - x1 * y2 + y1 * x2)
+    rot = max(rot, math.degrees(2 * math.atan2(math.hypot(*v), abs(w))))
+    centre = max(centre, math.dist(a[t][:3], b[t][:3]) / radius)
+same = sum(a[t] == b[t] for t in a)
+print("%s: %d frames placed (%d printed identically), %d lost, as natively; largest rotation difference %.2e deg, "
+      "centre %.2e of the radius" % (sys.argv[3], len(a), same, len(lost_a), rot, centre))
+if len(a) == 0 or rot > 0.001 or centre > 1e-5:
+    sys.exit("%s: over 0.001 degrees or 1e-5 of the radius (or no frame placed)" % sys.argv[3])
+EOF
 }
 if [[ -f "$aarch64/CMakeCache.txt" ]]; then
   cross_examples "$aarch64" aarch64-linux-gnu qemu-aarch64
