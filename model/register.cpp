@@ -122,10 +122,11 @@ struct Registrar::Impl {
     kernels = k ? k : &simd::best_kernel_table();
     if (options.fixed_point) {
       // The same poses on every CPU: the fixed-point blending is bit-identical across tables, and
-      // the float kernels before it (decoder MLPs, projection) run their scalar references, whose
-      // SIMD variants round differently (0.001-0.0025 degrees apart after a tracked path).
+      // the float kernels before it run bit-identical to their scalar references (the decoder MLPs'
+      // exact variant; the projection's reference itself), where the fast SIMD variants round
+      // differently (0.0014-0.0017 degrees apart after a tracked path).
       portable_kernels = *kernels;
-      portable_kernels.mlp_fwd = simd::ref_kernel_table().mlp_fwd;
+      portable_kernels.mlp_fwd = kernels->mlp_fwd_exact;
       portable_kernels.project_fwd = simd::ref_kernel_table().project_fwd;
       kernels = &portable_kernels;
     }

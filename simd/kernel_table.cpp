@@ -35,7 +35,7 @@ const KernelTable& ref_kernel_table() {
       "ref", 1, &project_fwd_ref<float>, &project_bwd_ref<float>, &raster_fwd_tile_ref<float>,
       &raster_bwd_tile_ref<float>, &loss_fwd_ref<float>, &loss_bwd_ref<float>, &mlp_fwd_ref<float>,
       &mlp_bwd_ref<float>, &adam_step_ref<float>, &yuyv_to_rgb_ref, &nv12_to_rgb_ref, &qraster_fwd_tile_ref,
-      &qmlp_fwd_ref, &loss_bwd_rows_ref<float>,
+      &qmlp_fwd_ref, &loss_bwd_rows_ref<float>, &mlp_fwd_ref<float>,
   };
   return table;
 }

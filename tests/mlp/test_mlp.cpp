@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <string>
 #include <vector>
@@ -370,6 +371,45 @@ GS_SIMD_TEST_CASE(mlp_training_shapes, "mlp: SIMD kernels match the float refere
     }
   }
   MESSAGE("SIMD vs ref (training shapes) worst relative error: forward " << worst_fwd << ", backward " << worst_bwd);
+}
+
+// mlp_fwd_exact (the on-device decode) is bit-identical to the float reference on every table:
+// the hbgs shapes, odd shapes, every activation, batches with tails of every lane count (and 0,
+// which writes nothing), a dead hidden unit, and pre-activations of exactly 0 (ReLU kinks); a
+// shape too large for its stack buffer takes the reference itself. Canaries after every output.
+GS_REF_AND_SIMD_TEST_CASE(mlp_exact_matches_ref, "mlp: the exact forward is bit-identical to the float reference") {
+  const MlpShape shapes[] = {{52, 32, 10, MlpAct::kTanh}, {52, 32, 70, MlpAct::kNone}, {52, 32, 30, MlpAct::kSigmoid},
+                             {36, 32, 10, MlpAct::kNone}, {5, 7, 3, MlpAct::kSigmoid}, {1, 1, 1, MlpAct::kTanh},
+                             {300, 40, 5, MlpAct::kTanh}, {2000, 33, 4, MlpAct::kSigmoid}};
+  const int32_t batches[] = {0, 1, 2, 3, 5, 7, 8, 9, 15, 16, 17, 100};
+  size_t compared = 0;
+  for (const MlpShape& s : shapes) {
+    for (int32_t batch : batches) {
+      CAPTURE(kt->isa); CAPTURE(s.in); CAPTURE(s.hidden); CAPTURE(s.out); CAPTURE(int(s.act2)); CAPTURE(batch);
+      std::mt19937_64 rng(uint64_t(batch) * 313 + uint64_t(s.in) * 17 + uint64_t(s.out));
+      Net<float> n(s, batch, rng);
+      const size_t I = size_t(s.in), H = size_t(s.hidden), O = size_t(s.out), Bn = size_t(batch);
+      n.p[2][H / 2] = -100.0f;  // a dead hidden unit
+      if (Bn > 0 && H > 1) {    // an exact 0 pre-activation: row 0's first unit, b1 = -(W1 x) in double
+        double acc = 0;
+        for (size_t i = 0; i < I; ++i) acc += double(n.p[1][i]) * double(n.p[0][i]);
+        n.p[2][0] = float(-acc);
+      }
+      std::vector<float> h_ref = with_canary(Bn * H), y_ref = with_canary(Bn * O);
+      gs::simd::mlp_fwd_ref<float>(&s, batch, n.p[0].data(), n.p[1].data(), n.p[2].data(), n.p[3].data(),
+                                   n.p[4].data(), h_ref.data(), y_ref.data());
+      std::vector<float> h = with_canary(Bn * H, 3.0f), y = with_canary(Bn * O, 3.0f);
+      kt->mlp_fwd_exact(&s, batch, n.p[0].data(), n.p[1].data(), n.p[2].data(), n.p[3].data(), n.p[4].data(), h.data(),
+                        y.data());
+      check_canary(h, Bn * H, "hidden");
+      check_canary(y, Bn * O, "y");
+      if (batch == 0) continue;  // nothing written: the canaries above
+      CHECK(std::memcmp(h.data(), h_ref.data(), Bn * H * sizeof(float)) == 0);
+      CHECK(std::memcmp(y.data(), y_ref.data(), Bn * O * sizeof(float)) == 0);
+      compared += Bn * (H + O);
+    }
+  }
+  MESSAGE(std::string(kt->isa) << ": " << compared << " values bit-identical to the reference");
 }
 
 TEST_CASE("adam: reference matches a hand-computed two-step example") {

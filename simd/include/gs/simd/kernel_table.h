@@ -66,6 +66,10 @@ struct KernelTable {
   QRasterFwdTileFn qraster_fwd_tile;  // fixed-point forward of one tile, bit-identical across tables (qsplat.h)
   QMlpFwdFn qmlp_fwd;                 // int8 decoder MLP over a batch of rows, bit-identical across tables (qmlp.h)
   LossBwdRowsFn loss_bwd_rows;        // loss_bwd for a band of rows, with per-row sums (parallel bands; loss.h)
+  // mlp_fwd bit-identical to mlp_fwd_ref on every table (lanes along the rows, double accumulation
+  // in the reference's order; kernels/mlp/mlp_exact.hpp): the on-device decode, whose poses must not
+  // depend on the CPU. Slower than mlp_fwd.
+  MlpFwdFn mlp_fwd_exact;
 };
 
 // The reference table (always available).
