@@ -68,7 +68,7 @@ struct Registrar::Impl {
   RegisterOptions opt;
   platform::ThreadPool* pool = nullptr;
   const simd::KernelTable* kernels = nullptr;
-  simd::KernelTable portable_kernels{};  // fixed_point: the table with the reference float decode and projection
+  simd::KernelTable portable_kernels{};  // fixed_point: the table with the exact decode and the reference projection
   // The renderer, decode backend and workspace: the registrar's own, or lent by a trainer
   // (RegistrarSharing: registration runs between its steps, so one set serves both).
   Renderer own_renderer;
@@ -90,6 +90,7 @@ struct Registrar::Impl {
   PinholeIntrinsics cand_intr{};
   int desc_factor = 1;
   size_t desc_dim = 0;
+  uint64_t cand_bytes = 0;  // of the above, in planned_bytes()
   int max_w = 0, max_h = 0;
   size_t planned_rows = 0;
 
@@ -732,7 +733,7 @@ Status Registrar::render(const Camera& cam, float* rgb, float* depth, float* alp
 
 const RegisterOptions& Registrar::options() const { return impl_->opt; }
 RegisterOptions& Registrar::mutable_options() { return impl_->opt; }
-uint64_t Registrar::planned_bytes() const { return impl_->bytes; }
+uint64_t Registrar::planned_bytes() const { return impl_->bytes + impl_->cand_bytes; }
 
 Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& intr, const Pose& init, RegisterResult* out) {
   Impl& d = *impl_;
@@ -752,8 +753,8 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
   const bool relocalize = !out->converged() && out->verdict != RegisterVerdict::kTimeBudget && d.opt.relocalize_candidates > 0 &&
                           !d.cand.empty() && intr.width == d.cand_intr.width && intr.height == d.cand_intr.height;
   if (relocalize) {
-    // The candidates most like the image, best first; the first that converges wins, else the
-    // start's result stands.
+    // The relocalize_candidates candidates most like the image; if none converges, the start's
+    // result stands.
     io::box_downsample_rgb(rgb, intr.width, intr.height, d.desc_factor, d.lvl_rgb.data());
     detail::grey_descriptor(d.lvl_rgb.data(), d.desc_dim, d.image_desc.data());
     d.ranked.clear();
@@ -798,6 +799,7 @@ Status Registrar::set_candidates(const std::vector<Pose>& poses, const PinholeIn
                             " is not within the planned " + std::to_string(d.max_w) + "x" + std::to_string(d.max_h));
   d.cand.clear();  // on an error below, no candidates are left
   d.cand_desc.clear();
+  d.cand_bytes = 0;
   if (poses.empty()) return Status::Ok();
   // The descriptor's grid: the largest whole divisor that keeps at least kDescriptorWidth x
   // kDescriptorHeight cells (an image smaller than that is described at its own size).
@@ -819,6 +821,8 @@ Status Registrar::set_candidates(const std::vector<Pose>& poses, const PinholeIn
   d.key_valid = false;  // key_rgb held the candidates' renders
   d.cand = poses;
   d.cand_intr = intr;
+  d.cand_bytes = uint64_t(d.cand_desc.size() + d.image_desc.size()) * sizeof(float) +
+                 uint64_t(poses.size()) * (sizeof(Pose) + sizeof(std::pair<float, int>));
   return Status::Ok();
 }
 
