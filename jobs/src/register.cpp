@@ -257,9 +257,11 @@ Status register_image(const RegisterRunOptions& a, RegisterImageSummary* summary
 namespace {
 
 // Registers each view of the split (dataset indices `index`) from its start pose against its true
-// pose; rows[k] and estimated[k] belong to ds.views[index[k]].
+// pose; rows[k] and estimated[k] belong to ds.views[index[k]]; candidates[c] is the dataset index
+// of the registrar's relocalisation candidate c.
 Status register_split(pose::Registrar& reg, const io::Dataset& ds, const std::vector<size_t>& index, const PoseTruth& truth,
-                      const std::vector<size_t>& candidates, const float background[3], const std::function<void(const RegisteredView&, size_t, size_t)>& progress,
+                      const std::vector<size_t>& candidates, const float background[3],
+                      const std::function<void(const RegisteredView&, size_t, size_t)>& progress,
                       std::vector<RegisteredView>* rows, std::vector<Pose>* estimated) {
   const double radius = truth.radius * truth.unit;  // user units, as the distances below
   for (size_t k = 0; k < index.size(); ++k) {
