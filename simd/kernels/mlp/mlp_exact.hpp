@@ -16,6 +16,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <type_traits>
 #include <xsimd/xsimd.hpp>
 
 #include "gs/simd/isa.h"
@@ -25,7 +26,13 @@ namespace gs::simd {
 inline namespace GS_SIMD_ISA_NS {  // compiled per ISA: see gs/simd/isa.h
 namespace kernels {
 
-template <class Arch, bool kHasDouble = xsimd::types::has_simd_register<double, Arch>::value>
+// Whether Arch has double lanes: 32-bit NEON has none (xsimd declares an empty register for it).
+template <class Arch>
+struct HasDoubleLanes : std::bool_constant<xsimd::types::has_simd_register<double, Arch>::value> {};
+template <>
+struct HasDoubleLanes<xsimd::neon> : std::false_type {};
+
+template <class Arch, bool kHasDouble = HasDoubleLanes<Arch>::value>
 struct MlpExactKernels {
   static void fwd(const MlpShape* s, int32_t batch, const float* x, const float* W1, const float* b1,
                   const float* W2, const float* b2, float* hidden, float* y) {
