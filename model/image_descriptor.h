@@ -28,4 +28,12 @@ inline void grey_descriptor(const float* rgb, size_t pixels, float* out) {
   for (size_t i = 0; i < pixels; ++i) out[i] *= inv;
 }
 
+// 1 - normalised cross-correlation of two descriptors of dim values (0: alike, 2: inverted); the
+// ranking distance of the tracker's and the registrar's relocalisation candidates.
+inline float descriptor_distance(const float* a, const float* b, size_t dim) {
+  double dot = 0;
+  for (size_t i = 0; i < dim; ++i) dot += double(a[i]) * b[i];
+  return float(1.0 - dot);
+}
+
 }  // namespace gs::pose::detail

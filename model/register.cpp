@@ -758,12 +758,9 @@ Status Registrar::register_view(const uint8_t* rgb, const PinholeIntrinsics& int
     io::box_downsample_rgb(rgb, intr.width, intr.height, d.desc_factor, d.lvl_rgb.data());
     detail::grey_descriptor(d.lvl_rgb.data(), d.desc_dim, d.image_desc.data());
     d.ranked.clear();
-    for (size_t i = 0; i < d.cand.size(); ++i) {
-      const float* c = d.cand_desc.data() + i * d.desc_dim;
-      double dot = 0;
-      for (size_t k = 0; k < d.desc_dim; ++k) dot += double(c[k]) * d.image_desc[k];
-      d.ranked.emplace_back(float(1.0 - dot), int(i));
-    }
+    for (size_t i = 0; i < d.cand.size(); ++i)
+      d.ranked.emplace_back(detail::descriptor_distance(d.cand_desc.data() + i * d.desc_dim, d.image_desc.data(), d.desc_dim),
+                            int(i));
     const size_t tries = std::min(d.ranked.size(), size_t(d.opt.relocalize_candidates));
     std::partial_sort(d.ranked.begin(), d.ranked.begin() + std::ptrdiff_t(tries), d.ranked.end());
     // Every ranked candidate is tried and the converged result that fits best wins: a look-alike pose

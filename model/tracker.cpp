@@ -450,11 +450,7 @@ struct Tracker::Impl {
     const FrameLevel& c = frame[size_t(levels - 1)];
     detail::grey_descriptor(c.rgb.data(), size_t(c.in.width) * size_t(c.in.height), frame_desc.data());
     ranked.clear();
-    auto dist = [&](const float* d) {
-      double dot = 0;
-      for (size_t i = 0; i < desc_dim; ++i) dot += double(d[i]) * frame_desc[i];
-      return float(1.0 - dot);
-    };
+    auto dist = [&](const float* d) { return detail::descriptor_distance(d, frame_desc.data(), desc_dim); };
     for (size_t i = 0; i < cand.size(); ++i) ranked.emplace_back(dist(cand_desc.data() + i * desc_dim), int(i));
     for (size_t i = 0; i < ring_count; ++i) ranked.emplace_back(dist(ring_desc.data() + i * desc_dim), -1 - int(i));
     std::sort(ranked.begin(), ranked.end());
