@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
 // A global image descriptor for finding views of the same place: the grey levels of a small image,
 // zero mean, unit norm, so the dot product of two is their normalised cross-correlation. Used by
-// the tracker's relocalisation (its coarsest pyramid level) and the trainer's held-back views (the
-// training photos at kDescriptorWidth x kDescriptorHeight).
+// the tracker's relocalisation (its coarsest pyramid level), the registrar's relocalisation
+// candidates (renders box-filtered to at least kDescriptorWidth x kDescriptorHeight) and the
+// trainer's held-back views (the training photos at kDescriptorWidth x kDescriptorHeight).
 #pragma once
 
 #include <algorithm>
