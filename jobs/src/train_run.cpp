@@ -86,6 +86,12 @@ class TrainRun {
   // Evaluates every test view fully (PNGs, SSIM, LPIPS) and merges the figures as "ours_<it>" into
   // results.json / per_view.json.
   Status full_eval(int it);
+  // The last step is done: its gradient and growth buffers and the training photos go before the
+  // final evaluation renders and measures (the memory peak would otherwise be the sum of both).
+  void release_for_final_eval() {
+    trainer_->release_step_memory();
+    d_->release_training_pixels();
+  }
   // Optimised poses: the test views in the model's frame, registered (TrainSession::Impl::
   // test_views_in_model_frame, register_test_views), with the PSNR at the dataset poses and at the
   // mapped ones beside in *report.
@@ -128,7 +134,9 @@ class TrainRun {
   std::unique_ptr<TrainSession> session_;
   TrainSession::Impl* d_ = nullptr;       // session_'s state
   model::Trainer* trainer_ = nullptr;     // session_'s trainer
-  std::unique_ptr<metrics::LpipsAlex> lpips_;
+  // The LPIPS network (about 9.5 MB of weights) is loaded at set-up to check it, then held only
+  // while an evaluation runs: kept through training it was resident for the whole run.
+  bool have_lpips_ = false;
   std::string title_, dataset_abs_, model_options_, model_path_;
   Progress prog_;
   StageTimes stage_times_;  // the current step's stages (reset after each step, summed into prog_)
@@ -242,7 +250,7 @@ Status TrainRun::prepare_session() {
   Expected<std::unique_ptr<metrics::LpipsAlex>> lpips = load_lpips(a_.lpips_weights, a_.threads, &lpips_note);
   if (!lpips.ok()) return lpips.status();
   if (!lpips_note.empty()) note(lpips_note);
-  lpips_ = std::move(lpips).value();
+  have_lpips_ = *lpips != nullptr;
   return Status::Ok();
 }
 
@@ -394,8 +402,15 @@ nlohmann::json TrainRun::budget_json(int it) const {
 Status TrainRun::full_eval(int it) {
   if (!have_test_) return Status::Ok();
   const std::string method = "ours_" + std::to_string(it);
+  std::unique_ptr<metrics::LpipsAlex> lpips;  // for this evaluation only (have_lpips_)
+  if (have_lpips_) {
+    std::string unused_note;
+    Expected<std::unique_ptr<metrics::LpipsAlex>> loaded = load_lpips(a_.lpips_weights, a_.threads, &unused_note);
+    if (!loaded.ok()) return loaded.status();
+    lpips = std::move(loaded).value();
+  }
   model::EvalOptions eo;
-  eo.lpips = lpips_.get();
+  eo.lpips = lpips.get();
   std::copy(trainer_->options().background.rgb, trainer_->options().background.rgb + 3, eo.render.background);
   eo.render_dir = (fs::path(a_.out) / "test" / method / "renders").string();
   nlohmann::json test_pose_report;
@@ -405,7 +420,7 @@ Status TrainRun::full_eval(int it) {
       model::evaluate_views(*trainer_, a_.optimize_poses ? pointers_to(registered) : d_->test_views, eo, d_->pool.get());
   if (!r.ok()) return r.status();
   nlohmann::json extra = eval_extra(it, *r);
-  if (lpips_) extra["lpips_backbone"] = metrics::LpipsAlex::kLabel;
+  if (lpips) extra["lpips_backbone"] = metrics::LpipsAlex::kLabel;
   if (a_.time_budget > 0) extra["time_budget"] = budget_json(it);
   if (a_.optimize_poses) {
     extra["test_poses"] = "dataset poses mapped into the model's frame (Sim(3) of the training camera centres), then registered against the model";
@@ -417,7 +432,7 @@ Status TrainRun::full_eval(int it) {
   std::string merge_note;
   GS_RETURN_IF_ERROR(write_eval_files(a_.out, method, *r, extra, &merge_note));
   if (!merge_note.empty()) note(merge_note);
-  if (lpips_ && r->lpips < 0 && final_)
+  if (lpips && r->lpips < 0 && final_)
     note("LPIPS not computed: the test views are smaller than " + std::to_string(metrics::LpipsAlex::kMinSide) + " px a side");
   if (a_.eval_every > 0) add_psnr_row(it, r->psnr);
   final_eval_ = std::move(r).value();
@@ -518,9 +533,7 @@ Status TrainRun::after_step(int it) {
   const bool quick = !full && a_.eval_every > 0 && have_test_ && it % a_.eval_every == 0;
   const bool save = full || (a_.checkpoint_every > 0 && it % a_.checkpoint_every == 0);
   Status out_st;
-  // The last step is done: its gradient and growth buffers go before the final evaluation renders
-  // and measures (the training memory peak would otherwise be the sum of both).
-  if (final_) trainer_->release_step_memory();
+  if (final_) release_for_final_eval();
   if (full) {
     out_st = full_eval(it);
     last_full_ = it;
@@ -543,7 +556,7 @@ Status TrainRun::finish() {
   const int final_it = trainer_->iteration();
   final_ = true;
   if (last_full_ != final_it) {
-    trainer_->release_step_memory();
+    release_for_final_eval();
     GS_RETURN_IF_ERROR(full_eval(final_it));
   }
   if (a_.optimize_poses)
