@@ -30,19 +30,24 @@ const test::TrainScene& scene() {
   return s;
 }
 
+// The model as created on the scene's points, untrained.
+HybridModel untrained() {
+  std::vector<const Camera*> cams;
+  for (const auto& v : scene().views) cams.push_back(&v.camera);
+  Expected<HybridModel> m = create_model(test::small_scene_model_config(), scene().points.data(), scene().points.size() / 3,
+                                         cameras_extent(cams), 1);
+  REQUIRE(m.ok());
+  return std::move(m).value();
+}
+
 // A model trained 300 iterations on the scene (no densification), made once.
 const HybridModel& trained() {
   static const HybridModel m = [] {
-    const ModelConfig c = test::small_scene_model_config();
-    std::vector<const Camera*> cams;
-    for (const auto& v : scene().views) cams.push_back(&v.camera);
-    Expected<HybridModel> m0 = create_model(c, scene().points.data(), scene().points.size() / 3, cameras_extent(cams), 1);
-    REQUIRE(m0.ok());
     TrainOptions o;
     o.iterations = 300;
     o.seed = 2;
     o.stat_start = o.update_from = o.update_until = 1000000;
-    Expected<std::unique_ptr<Trainer>> t = Trainer::create(std::move(*m0), scene().ptrs, o, nullptr);
+    Expected<std::unique_ptr<Trainer>> t = Trainer::create(untrained(), scene().ptrs, o, nullptr);
     REQUIRE(t.ok());
     for (int i = 0; i < o.iterations; ++i) REQUIRE((*t)->step(nullptr).ok());
     return (*t)->model();
@@ -89,23 +94,18 @@ TEST_CASE("bake: the fit reproduces the model's renders, distillation improves i
 }
 
 TEST_CASE("bake: bad options and inputs are refused with a message") {
-  // The model as created, untrained: refusing bad input needs no trained model, and training one
-  // took 20-35 s of this case under qemu.
-  const ModelConfig c = test::small_scene_model_config();
-  std::vector<const Camera*> cams;
-  for (const auto& v : scene().views) cams.push_back(&v.camera);
-  Expected<HybridModel> m = create_model(c, scene().points.data(), scene().points.size() / 3, cameras_extent(cams), 1);
-  REQUIRE(m.ok());
+  // Refusing bad input needs no trained model, and training one took 20-35 s of this case under qemu.
+  const HybridModel m = untrained();
   BakeOptions o;
-  CHECK(bake_model(*m, {}, o, nullptr).status().message().find("no cameras") != std::string::npos);
+  CHECK(bake_model(m, {}, o, nullptr).status().message().find("no cameras") != std::string::npos);
   o.sh_degree = 4;
-  CHECK(bake_model(*m, cameras(), o, nullptr).status().message().find("sh_degree") != std::string::npos);
+  CHECK(bake_model(m, cameras(), o, nullptr).status().message().find("sh_degree") != std::string::npos);
   o = BakeOptions{};
   o.min_opacity = 1.0f;
-  CHECK_FALSE(bake_model(*m, cameras(), o, nullptr).ok());
+  CHECK_FALSE(bake_model(m, cameras(), o, nullptr).ok());
   std::vector<Camera> bad = cameras();
   bad[0].intr.fx = -1;
-  CHECK_FALSE(bake_model(*m, bad, BakeOptions{}, nullptr).ok());
+  CHECK_FALSE(bake_model(m, bad, BakeOptions{}, nullptr).ok());
 }
 
 TEST_CASE("model renderer: a cloud renders as the renderer's own SH path renders it, and evaluation takes clouds") {
