@@ -26,6 +26,7 @@ train() {  # train RUN DATASET ITERATIONS [options...]
   local run=$1 dataset=$2 iterations=$3
   shift 3
   [[ -f "$run/results.json" ]] && return 0
+  mkdir -p "$(dirname "$run")"
   echo "track-bench: training $(basename "$run") ($(date +%H:%M:%S))"
   "$hbgs" train "$dataset" --out "$run" --iterations "$iterations" --seed 0 --threads "$threads" --eval-every 0 \
     --save-at '' -q --force "${lpips[@]}" "$@" > "$run.log" 2>&1 || { echo "track-bench: training failed, see $run.log" >&2; exit 1; }
