@@ -365,11 +365,16 @@ struct Tracker::Impl {
     out->coverage = double(s.inside) / (double(f.in.width) * double(f.in.height));
   }
 
-  bool good(const Sums& s, const TrackResult& r) const {
+  bool good(const Sums& s, const TrackResult& r) const { return fits(s, r) && usual_rmse(r); }
+  // The verdict's absolute bounds: RMSE, explained variance, coverage, points inside.
+  bool fits(const Sums& s, const TrackResult& r) const {
     return s.used > 0 && double(s.inside) >= kMinInside * double(s.used) && r.rmse <= opt.max_rmse &&
-           r.explained >= opt.min_explained && r.coverage >= opt.min_coverage &&
-           (opt.max_rmse_growth <= 0 || recent_count < kRecentMin || r.rmse <= kRmseFloor ||
-            r.rmse <= opt.max_rmse_growth * recent_median());
+           r.explained >= opt.min_explained && r.coverage >= opt.min_coverage;
+  }
+  // The bound relative to the stream's recent residual (max_rmse_growth).
+  bool usual_rmse(const TrackResult& r) const {
+    return opt.max_rmse_growth <= 0 || recent_count < kRecentMin || r.rmse <= kRmseFloor ||
+           r.rmse <= opt.max_rmse_growth * recent_median();
   }
 
   // The RMSE of the last kRecent placed frames (a ring) and its median.
@@ -456,11 +461,33 @@ struct Tracker::Impl {
     std::sort(ranked.begin(), ranked.end());
   }
 
+  // A pose found by one of the relocalisation's registrations: where it started, the frame's
+  // figures there, and how many registrations from other starts reached the same place.
+  struct Found {
+    Pose start, pose;
+    double rmse = 0, explained = 0, coverage = 0;
+    int agree = 0;
+  };
+  std::vector<Found> found;  // capacity planned at create(): relocalize_candidates + 1
+  // The accuracy the tracker is asked for: 1 degree and 1 % of the scene extent.
+  bool same_place(const Pose& a, const Pose& b) const {
+    return rotation_error_deg(a, b) <= 1.0 && centre_distance(a, b) <= 0.01 * extent;
+  }
+
   // Registration from the best-ranked poses (and first from the last pose when the previous frame
-  // was placed); the first `converged` one that the tracker's own check confirms wins.
-  Status relocalize(const uint8_t* rgb, TrackResult* out, int* iterations, bool* found) {
-    *found = false;
+  // was placed). A converged pose that fits the frame (the verdict's absolute bounds) is a
+  // candidate; it is accepted when its RMSE is usual for the stream (max_rmse_growth) or when a
+  // registration from another start (over 1 degree or 1 % away) reached the same place. A
+  // look-alike is a local minimum one start slides into; a view the model renders worse than the
+  // stream's usual (a held-out photo, a blurred one) is still where starts from several sides meet.
+  // Snowmiku_plush's photos in capture order: 3 frames whose three candidate starts all met at the
+  // true pose were lost to the growth bound alone. The accepted candidate with the lowest RMSE
+  // wins if it also passes the basin test; the search stops early once a pose is both usual and
+  // agreed.
+  Status relocalize(const uint8_t* rgb, TrackResult* out, int* iterations, bool* placed_out) {
+    *placed_out = false;
     rank();
+    found.clear();
     const int tries = std::max(0, opt.relocalize_candidates);
     int tried = 0;
     for (int i = -1; i < int(ranked.size()) && tried < tries + (placed ? 1 : 0); ++i) {
@@ -477,17 +504,43 @@ struct Tracker::Impl {
       GS_RETURN_IF_ERROR(registrar->register_view(rgb, full, from, &rr));
       *iterations += rr.iterations;
       if (!rr.converged()) continue;
-      Pose p = rr.pose;
-      GS_RETURN_IF_ERROR(render_keyframe(p));
-      const Sums s = align(&p, iterations);
-      fill_stats(s, out);
-      if (!good(s, *out) || !stable(p, iterations)) continue;
-      out->pose = p;
+      Found f;
+      f.start = from;
+      f.pose = rr.pose;
+      GS_RETURN_IF_ERROR(render_keyframe(f.pose));
+      const Sums s = align(&f.pose, iterations);
+      TrackResult r;
+      fill_stats(s, &r);
+      if (!fits(s, r)) continue;
+      f.rmse = r.rmse, f.explained = r.explained, f.coverage = r.coverage;
+      bool settled = false;
+      for (Found& g : found)
+        if (same_place(g.pose, f.pose) && !same_place(g.start, f.start)) {
+          ++g.agree, ++f.agree;
+          settled = settled || (usual_rmse(r) || usual_rmse(as_result(g)));
+        }
+      found.push_back(f);
+      if (settled) break;
+    }
+    // Accepted candidates by RMSE, lowest first (a handful: insertion order, no allocation).
+    std::sort(found.begin(), found.end(), [](const Found& a, const Found& b) { return a.rmse < b.rmse; });
+    for (const Found& f : found) {
+      if (!usual_rmse(as_result(f)) && f.agree == 0) continue;
+      GS_RETURN_IF_ERROR(render_keyframe(f.pose));
+      if (!stable(f.pose, iterations)) continue;
+      out->pose = f.pose;
+      out->rmse = f.rmse, out->explained = f.explained, out->coverage = f.coverage;
       out->new_keyframe = true;
-      *found = true;
+      *placed_out = true;
       return Status::Ok();
     }
+    if (!found.empty()) out->rmse = found[0].rmse, out->explained = found[0].explained, out->coverage = found[0].coverage;
     return Status::Ok();
+  }
+  static TrackResult as_result(const Found& f) {
+    TrackResult r;
+    r.rmse = f.rmse, r.explained = f.explained, r.coverage = f.coverage;
+    return r;
   }
 };
 
@@ -556,6 +609,7 @@ Expected<std::unique_ptr<Tracker>> Tracker::create(const model::HybridModel& mod
   d.frame_desc.assign(d.desc_dim, 0.0f);
   d.key_desc.assign(d.desc_dim, 0.0f);
   d.ranked.reserve(kKeyframeRing);
+  d.found.reserve(size_t(std::max(0, options.relocalize_candidates)) + 1);
   d.bytes = bytes + d.partial.size() * sizeof(Sums) + (kKeyframeRing + 1) * d.desc_dim * sizeof(float) +
             d.registrar->planned_bytes();
   return t;

@@ -65,6 +65,9 @@ struct TrackOptions {
   // A placed frame's RMSE may be at most this many times the median RMSE of the last 20 placed
   // frames (the model's own residual on this stream; 0: no bound): a look-alike pose on a weakly
   // textured object can explain much of the frame's variance, but not as well as the true pose.
+  // A relocalised pose beyond it is still accepted when registrations from two starts over 1 degree
+  // or 1 % apart reach it (within 1 degree and 1 %): a held-out or blurred photo that the model
+  // renders worse than the stream's usual, not a look-alike (model/tracker.cpp, relocalize).
   double max_rmse_growth = 2.5;
   // A pose found by registration (relocalised, or a frame checked after a large move) must also be
   // where the alignment returns to from 4 starts turned this far about the camera centre (0: no
@@ -72,7 +75,9 @@ struct TrackOptions {
   // photos in capture order 2 degrees took the frames placed over 1 degree off from 2 to 1 (4 lost
   // either way); 3 and 4 degrees lost 17-20 frames and every sceaux_castle photo.
   double basin_check_deg = 2.0;
-  int relocalize_candidates = 3;   // registrations from the best-ranked candidates when lost
+  // Registrations from the best-ranked candidates when lost (after one from the last pose); the
+  // accepted pose with the lowest RMSE wins, not the first.
+  int relocalize_candidates = 3;
   // The registrations' options (their background and fixed_point are the tracker's own); by
   // default they end at half resolution.
   RegisterOptions relocalize = half_resolution_registration();
