@@ -99,6 +99,7 @@ out, rows = sys.argv[1], sys.argv[2:]
 fields = ['stream', 'frames', 'tracking', 'relocalized', 'lost', 'median_rot_deg', 'max_rot_deg', 'median_centre_pct_radius',
           'within_1deg_1pct', 'wrong_over_2deg', 'fps', 'ms_median', 'ms_p95', 'decode', 'prepare', 'align', 'keyframe', 'relocalize']
 table = []
+placed_counts = []  # frames with a pose compared against the truth, per stream
 for row in rows:
     name, d = row.split('|', 1)
     t = json.load(open(d + '/track.json'))
@@ -109,6 +110,7 @@ for row in rows:
     cen = [float(p['centre_error']) for p in per if p.get('status') == 'compared']
     n = max(t['frames'], 1)
     good = sum(1 for r, e in zip(rot, cen) if r <= 1.0 and e <= 0.01 * radius)
+    placed_counts.append(len(rot))
     wrong = sum(1 for r in rot if r > 2.0)
     med = lambda v: sorted(v)[len(v) // 2] if v else float('nan')
     ms = t['ms_per_frame']
@@ -127,5 +129,17 @@ with open(out + '/track.md', 'w') as f:
     f.write('| ' + ' | '.join(fields) + ' |\n|' + '---|' * len(fields) + '\n')
     for r in table:
         f.write('| ' + ' | '.join(str(r[k]) for k in fields) + ' |\n')
+    # Issue 25's real-capture aim over all real scenes: within 1 degree and 1 %, the rest lost.
+    f.write('\n')
+    for kind in ('folder', 'video'):
+        rs = [(r, placed) for r, placed in zip(table, placed_counts) if r['stream'].startswith('real_') and r['stream'].endswith('_' + kind)]
+        if not rs:
+            continue
+        frames = sum(r['frames'] for r, _ in rs)
+        within = sum(int(r['within_1deg_1pct'].split()[0]) for r, _ in rs)
+        lost = sum(r['lost'] for r, _ in rs)
+        outside = sum(placed for _, placed in rs) - within
+        f.write('real scenes, %s: %d of %d frames within 1 degree and 1 %% (%.1f %%), %d lost, %d placed outside\n'
+                % (kind, within, frames, 100.0 * within / max(frames, 1), lost, outside))
 print(open(out + '/track.md').read())
 PY
