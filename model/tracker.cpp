@@ -365,16 +365,16 @@ struct Tracker::Impl {
     out->coverage = double(s.inside) / (double(f.in.width) * double(f.in.height));
   }
 
-  bool good(const Sums& s, const TrackResult& r) const { return fits(s, r) && usual_rmse(r); }
+  bool good(const Sums& s, const TrackResult& r) const { return fits(s, r) && usual_rmse(r.rmse); }
   // The verdict's absolute bounds: RMSE, explained variance, coverage, points inside.
   bool fits(const Sums& s, const TrackResult& r) const {
     return s.used > 0 && double(s.inside) >= kMinInside * double(s.used) && r.rmse <= opt.max_rmse &&
            r.explained >= opt.min_explained && r.coverage >= opt.min_coverage;
   }
   // The bound relative to the stream's recent residual (max_rmse_growth).
-  bool usual_rmse(const TrackResult& r) const {
-    return opt.max_rmse_growth <= 0 || recent_count < kRecentMin || r.rmse <= kRmseFloor ||
-           r.rmse <= opt.max_rmse_growth * recent_median();
+  bool usual_rmse(double rmse) const {
+    return opt.max_rmse_growth <= 0 || recent_count < kRecentMin || rmse <= kRmseFloor ||
+           rmse <= opt.max_rmse_growth * recent_median();
   }
 
   // The RMSE of the last kRecent placed frames (a ring) and its median.
@@ -518,7 +518,7 @@ struct Tracker::Impl {
       for (Found& g : found)
         if (same_place(g.pose, f.pose) && !same_place(g.start, f.start)) {
           ++g.agree, ++f.agree;
-          settled = settled || (usual_rmse(r) || usual_rmse(as_result(g)));
+          settled = settled || usual_rmse(f.rmse) || usual_rmse(g.rmse);
         }
       found.push_back(f);
       if (settled) break;
@@ -527,7 +527,7 @@ struct Tracker::Impl {
     // allocates nothing).
     std::sort(found.begin(), found.end(), [](const Found& a, const Found& b) { return a.rmse < b.rmse; });
     for (const Found& f : found) {
-      if (!usual_rmse(as_result(f)) && f.agree == 0) continue;
+      if (!usual_rmse(f.rmse) && f.agree == 0) continue;
       GS_RETURN_IF_ERROR(render_keyframe(f.pose));
       if (!stable(f.pose, iterations)) continue;
       out->pose = f.pose;
@@ -538,11 +538,6 @@ struct Tracker::Impl {
     }
     if (!found.empty()) out->rmse = found[0].rmse, out->explained = found[0].explained, out->coverage = found[0].coverage;
     return Status::Ok();
-  }
-  static TrackResult as_result(const Found& f) {
-    TrackResult r;
-    r.rmse = f.rmse, r.explained = f.explained, r.coverage = f.coverage;
-    return r;
   }
 };
 

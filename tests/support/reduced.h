@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
 // Reduced-size builds of the long tests, for the "qemu" label (cross builds run `ctest -L qemu` under
 // qemu-user, and CI runs the qemu-labelled x86 binaries under qemu-x86_64 too). The same source is
-// compiled twice (tests/model/CMakeLists.txt, tests/core/CMakeLists.txt): test_x at full size for the
-// native run, and test_x_qemu with GS_TEST_REDUCED=1, whose ctest names end in " (reduced)".
+// compiled twice (gs_add_test_pair in tests/CMakeLists.txt): test_x at full size for the native run,
+// and test_x_qemu with GS_TEST_REDUCED=1, whose ctest names end in " (reduced)". The ASan build
+// builds only the reduced one (GS_TEST_REDUCED_INSTEAD).
 //
 // What "reduced" may change: the number of seeds and repetitions, and which cases run (a case that
 // is too slow under emulation and under ASan is marked GS_FULL_SIZE_ONLY and runs in the full-size
