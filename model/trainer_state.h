@@ -141,8 +141,8 @@ struct Trainer::Impl {
   // (Adam state reset) and joins training. Returns how many joined. Several starts per view: its
   // own pose, the poses of the trained views next to it in capture order (by name) and of those
   // whose photos look most like it (descriptors), searched at kHeldSearchDownscale, then the own
-  // pose and the best converged search at full resolution; the converged result with the lowest
-  // residual wins.
+  // pose and the best converged search at kHeldDecideDownscale; the converged result with the
+  // lowest residual wins, and a view moved there is registered again at full resolution.
   // A view moves only when a converged pose away from the given one fits clearly better
   // (kRepairRmseRatio) or better with the points preferring it (TrainOptions::judge_new_pose);
   // else it rejoins at its given pose if the registration from it converged there, or to a pose
@@ -158,8 +158,9 @@ struct Trainer::Impl {
   // A held view moves to a registered pose only when that pose's RMSE is below this fraction of
   // the RMSE at its given pose (see register_held).
   static constexpr double kRepairRmseRatio = 0.7;
-  // The resolution divisor of the search from a held view's other starts (register_held).
-  static constexpr int kHeldSearchDownscale = 4;
+  // The resolution divisors of the search from a held view's starts and of the registrations that
+  // decide whether it is confirmed or moved (register_held).
+  static constexpr int kHeldSearchDownscale = 4, kHeldDecideDownscale = 2;
   int held_starts(size_t v, Pose* starts) const;
   void describe_photos();  // fills descriptors
   // Target at resolution divisor s (s x s block means, matching scaled_camera), composited on bg;
