@@ -288,6 +288,7 @@ Status Trainer::Impl::register_held(int it, int* released) {
   // since joint optimisation moves a view only a few hundredths of a degree once the rates have
   // decayed and fixed poses never move.
   pose::RegisterOptions& ro = registrar->mutable_options();
+  const int polish_downscale = ro.polish_downscale;
   if (descriptors.empty()) describe_photos();  // a resumed run that holds views (once)
   for (size_t v = 0; v < views.size(); ++v) {
     ro.finest_downscale = 1;
@@ -314,6 +315,7 @@ Status Trainer::Impl::register_held(int it, int* released) {
     // (deciding at full resolution made these passes 14 % of a default 3,000-iteration
     // snowmiku_plush run, which confirms all 6 of its held views).
     ro.finest_downscale = kHeldSearchDownscale;
+    ro.polish_downscale = kHeldSearchDownscale / 2;
     pose::RegisterResult lead;
     int lead_start = -1;
     for (int i = 0; i < n; ++i) {
@@ -321,6 +323,7 @@ Status Trainer::Impl::register_held(int it, int* released) {
       GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, starts[i], &r));
       if (r.converged() && (lead_start < 0 || r.final_rmse < lead.final_rmse)) lead = r, lead_start = i;
     }
+    ro.polish_downscale = polish_downscale;
     if (lead_start < 0) continue;
     ro.finest_downscale = kHeldDecideDownscale;
     pose::RegisterResult own, best;
