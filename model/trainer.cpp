@@ -288,13 +288,18 @@ Status Trainer::Impl::register_held(int it, int* released) {
   // since joint optimisation moves a view only a few hundredths of a degree once the rates have
   // decayed and fixed poses never move.
   pose::RegisterOptions& ro = registrar->mutable_options();
-  const int polish_downscale = ro.polish_downscale;
+  const int polish_default = ro.polish_downscale;
   if (descriptors.empty()) describe_photos();  // a resumed run that holds views (once)
   for (size_t v = 0; v < views.size(); ++v) {
-    ro.finest_downscale = 1;
+    // Registers view v from start with its last level at 1/finest and its polish at 1/polish.
+    auto register_at = [&](int finest, int polish, const Pose& start, pose::RegisterResult* r) {
+      ro.finest_downscale = finest;
+      ro.polish_downscale = polish;
+      return registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, start, r);
+    };
     if (repaired[v]) {
       pose::RegisterResult r;
-      GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, view_cameras[v].pose, &r));
+      GS_RETURN_IF_ERROR(register_at(1, polish_default, view_cameras[v].pose, &r));
       if (r.converged() && r.final_rmse < r.initial_rmse) adopt_pose(v, r.pose);
       continue;
     }
@@ -314,30 +319,26 @@ Status Trainer::Impl::register_held(int it, int* released) {
     // tell poses a degree apart; only a pose the view moves to is registered at full resolution
     // (deciding at full resolution made these passes 14 % of a default 3,000-iteration
     // snowmiku_plush run, which confirms all 6 of its held views).
-    ro.finest_downscale = kHeldSearchDownscale;
     // The search's verdict only picks where the decision starts, so its polish renders at half
     // resolution (a render at 1/2 leaves 0.1-0.5 degree biases at 1/4; the decision removes them).
-    ro.polish_downscale = kHeldSearchDownscale / 2;
     pose::RegisterResult lead;
     int lead_start = -1;
     for (int i = 0; i < n; ++i) {
       pose::RegisterResult r;
-      GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, starts[i], &r));
+      GS_RETURN_IF_ERROR(register_at(kHeldSearchDownscale, kHeldSearchDownscale / 2, starts[i], &r));
       if (r.converged() && (lead_start < 0 || r.final_rmse < lead.final_rmse)) lead = r, lead_start = i;
     }
-    ro.polish_downscale = polish_downscale;
     if (lead_start < 0) continue;
-    ro.finest_downscale = kHeldDecideDownscale;
     pose::RegisterResult own, best;
     bool found = false;
     auto consider = [&](const pose::RegisterResult& r) {
       if (r.converged() && (!found || r.final_rmse < best.final_rmse)) best = r, found = true;
     };
-    GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, starts[0], &own));
+    GS_RETURN_IF_ERROR(register_at(kHeldDecideDownscale, polish_default, starts[0], &own));
     consider(own);
     if (!(found && near_start(own.pose)) && lead_start > 0) {
       pose::RegisterResult r;
-      GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, lead.pose, &r));
+      GS_RETURN_IF_ERROR(register_at(kHeldDecideDownscale, polish_default, lead.pose, &r));
       consider(r);
     }
     // A new pose only on clear evidence: it converged away from the given pose AND fits the photo
@@ -368,13 +369,13 @@ Status Trainer::Impl::register_held(int it, int* released) {
     held[v] = 0;
     ++*released;
     if (!repair) continue;
-    ro.finest_downscale = 1;
     pose::RegisterResult fine;
-    GS_RETURN_IF_ERROR(registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, best.pose, &fine));
+    GS_RETURN_IF_ERROR(register_at(1, polish_default, best.pose, &fine));
     adopt_pose(v, fine.converged() ? fine.pose : best.pose);
     repaired[v] = 1;
   }
   ro.finest_downscale = 1;
+  ro.polish_downscale = polish_default;
   if (opt.pose_register_every <= 0 && held_count() == 0 && repaired_count() == 0) registrar.reset();
   return Status::Ok();
 }
