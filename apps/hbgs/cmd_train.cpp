@@ -191,9 +191,12 @@ Command add_train_command(CLI::App& parent) {
   sub->add_option("--voxel-size", o->voxel_size, "Anchor voxel size in world units (0: automatic)")
       ->capture_default_str()
       ->check(CLI::Range(0.0f, 1e9f));
-  sub->add_option("--offsets", o->offsets, "Neural Gaussians (offsets) per anchor, k")
+  sub->add_option("--offsets", o->offsets, "Neural Gaussians (offsets) per anchor, k (-1: 10, or 7 with --time-budget)")
       ->capture_default_str()
-      ->check(CLI::Range(1, 64));
+      ->check(CLI::Range(-1, 64))
+      ->check(CLI::Validator(
+          [](std::string& v) { return v == "0" ? std::string("0 offsets: give 1 to 64, or -1 (automatic)") : std::string(); },
+          "NOT 0"));
   sub->add_option("--feature-dim", o->feature_dim, "Width of the learned anchor feature")
       ->capture_default_str()
       ->check(CLI::Range(1, 1024));

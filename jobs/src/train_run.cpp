@@ -209,6 +209,9 @@ Status TrainRun::resolve_resume() {
 }
 
 Status TrainRun::check_before_session() {
+  // The automatic offsets per anchor are decided once and recorded as a number (run.json, the
+  // checkpoint's model options): a resumed run keeps them whatever budget it is given.
+  a_.offsets = effective_offsets(a_);
   previous_ = run_outputs(a_.out);
   if (!a_.resume && !previous_.empty() && !a_.force) {
     if (have_run_json_ && !state_.committed && !legacy_checkpoint_)

@@ -156,6 +156,9 @@ TEST_CASE("time budget: a resumed run has what is left of the budget") {
   const Outcome a = train(o);
   CHECK(a.summary.iterations == 24);
   CHECK(a.summary.train_seconds == doctest::Approx(6.0));
+  // The automatic offsets per anchor are recorded as the number trained with (7 under a budget), so
+  // the resumed run below, which gives no budget, keeps them.
+  CHECK(read_json(o.out + "/run.json")["options"]["offsets"] == 7);
 
   // Resumed with a higher cap and no budget given: run.json's 10 s, 6 s of it spent, 16 more steps.
   FakeClock second{[](int) { return 0.25; }};
@@ -210,6 +213,32 @@ TEST_CASE("time budget: the length-derived schedule follows the predicted length
   CHECK(back.update_from == t4000.update_from);
   CHECK(back.stat_start == t4000.stat_start);
   CHECK(back.update_interval == t4000.update_interval);
+}
+
+TEST_CASE("time budget: a budgeted run trains 7 offsets per anchor unless --offsets says otherwise") {
+  gs::jobs::TrainRunOptions a;
+  auto k_of = [](const gs::jobs::TrainRunOptions& o) {
+    gs::Expected<gs::jobs::ResolvedTraining> r = gs::jobs::resolve_training(o);
+    REQUIRE_MESSAGE(r.ok(), r.status().to_string());
+    CHECK(gs::jobs::effective_offsets(o) == r->model.k);
+    return r->model.k;
+  };
+  CHECK(a.offsets == -1);
+  CHECK(k_of(a) == gs::model::ModelConfig{}.k);  // no budget: the paper's k
+  CHECK(k_of(a) == 10);
+  a.time_budget = 60;
+  CHECK(k_of(a) == 7);
+  a.offsets = 12;
+  CHECK(k_of(a) == 12);
+  a.time_budget = 0;
+  a.offsets = 5;
+  CHECK(k_of(a) == 5);
+  for (int bad : {0, -2, 65}) {
+    a.offsets = bad;
+    gs::Expected<gs::jobs::ResolvedTraining> r = gs::jobs::resolve_training(a);
+    REQUIRE_FALSE(r.ok());
+    CHECK(r.status().message().find("--offsets must be between 1 and 64") != std::string::npos);
+  }
 }
 
 TEST_CASE("time budget: durations are parsed, bad ones refused with a message") {

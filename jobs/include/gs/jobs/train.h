@@ -66,7 +66,9 @@ struct TrainRunOptions {
   // A dataset without a point cloud whose training views all have masks starts from points carved
   // from the masks (gs::io::carve_points_from_masks) instead of its random points; false: random.
   bool carve_points = true;
-  int offsets = 10;         // neural Gaussians (offsets) per anchor, k
+  // Neural Gaussians (offsets) per anchor, k. -1: automatic (effective_offsets): 10 (Scaffold-GS's
+  // and the paper's k), or 7 under a time budget, where the run's quality per second is what counts.
+  int offsets = -1;
   int feature_dim = 32;     // learned anchor feature width
   uint64_t seed = 0;        // MLP initialisation and view order
   int threads = 0;          // worker threads (0: all CPUs)
@@ -114,6 +116,10 @@ struct ResolvedTraining {
   model::TrainOptions train;
 };
 Expected<ResolvedTraining> resolve_training(const TrainRunOptions& options);
+// The neural Gaussians per anchor a run trains with: options.offsets, or when that is -1 the
+// automatic choice (TrainRunOptions::offsets). A run records this value in run.json, so a resumed
+// run keeps it.
+int effective_offsets(const TrainRunOptions& options);
 // Everything in the trainer's options that follows from the run's length, for a run of
 // `iterations` iterations: the learning-rate horizon, the densification window, the pose warm-up,
 // the registration passes, the held-back views' registrations (and coarse to fine, from
