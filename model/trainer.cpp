@@ -288,14 +288,18 @@ Status Trainer::Impl::register_held(int it, int* released) {
   // since joint optimisation moves a view only a few hundredths of a degree once the rates have
   // decayed and fixed poses never move.
   pose::RegisterOptions& ro = registrar->mutable_options();
-  const int polish_default = ro.polish_downscale;
+  const int finest_default = ro.finest_downscale, polish_default = ro.polish_downscale;
   if (descriptors.empty()) describe_photos();  // a resumed run that holds views (once)
   for (size_t v = 0; v < views.size(); ++v) {
-    // Registers view v from start with its last level at 1/finest and its polish at 1/polish.
+    // Registers view v from start with its last level at 1/finest and its polish at 1/polish; the
+    // registrar's options are as before afterwards, on an error too.
     auto register_at = [&](int finest, int polish, const Pose& start, pose::RegisterResult* r) {
       ro.finest_downscale = finest;
       ro.polish_downscale = polish;
-      return registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, start, r);
+      const Status st = registrar->register_view(photo(v).pixels.data(), view_cameras[v].intr, start, r);
+      ro.finest_downscale = finest_default;
+      ro.polish_downscale = polish_default;
+      return st;
     };
     if (repaired[v]) {
       pose::RegisterResult r;
@@ -374,8 +378,6 @@ Status Trainer::Impl::register_held(int it, int* released) {
     adopt_pose(v, fine.converged() ? fine.pose : best.pose);
     repaired[v] = 1;
   }
-  ro.finest_downscale = 1;
-  ro.polish_downscale = polish_default;
   if (opt.pose_register_every <= 0 && held_count() == 0 && repaired_count() == 0) registrar.reset();
   return Status::Ok();
 }

@@ -244,9 +244,10 @@ int effective_offsets(const TrainRunOptions& a) {
   // Under a time budget the run's quality per second counts, and 7 offsets per anchor buy more of it
   // than 10: a third fewer Gaussians per view, so about a third more iterations in the same seconds
   // (2026-11-28, 2 threads, AVX-512: test PSNR at the budget T of issue 23 +0.17 to +0.31 dB on
-  // the built-in scene, fox and snowmiku_plush, +0.09 to +0.58 dB at 3T). At a fixed iteration count 10 is as good or
-  // better (3,000 iterations: -0.06 to -0.66 dB with 7 on three of four scenes, LPIPS higher on
-  // all), so runs without a budget keep the paper's k (docs/MODEL.md, "Offsets per anchor").
+  // the built-in scene, fox and snowmiku_plush, +0.09 to +0.58 dB at 3T). At a fixed iteration
+  // count 10 is as good or better (3,000 iterations: -0.06 to -0.66 dB with 7 on three of four
+  // scenes, LPIPS higher on all), so runs without a budget keep the paper's k (docs/MODEL.md,
+  // "Offsets per anchor").
   return a.time_budget > 0 ? kTimeBudgetOffsets : model::ModelConfig{}.k;
 }
 
