@@ -95,8 +95,9 @@ inline int lowest_bit(uint64_t bits) {
 }
 
 // Pixels of a tile (x0, y0, w x h) inside a splat record's alpha >= 1/255 support box (the
-// [ext_x, ext_y] half-extents around its mean, pixel centres at +0.5): the pixel-splat pairs a tile
-// kernel evaluates, up to SIMD rounding and early termination. For the profile's counting model only.
+// [ext_x, ext_y] half-extents around its mean, pixel centres at +0.5; the kernels' splat_support_box):
+// the pixel-splat pairs a tile kernel evaluates, up to lane rounding and early termination. For the
+// profile's counting model only.
 uint64_t support_pixels_in_tile(const float* s, int x0, int y0, int w, int h) {
   const float ex = s[simd::kSplatExtX], ey = s[simd::kSplatExtY];
   if (!(ex >= 0.0f)) return 0;

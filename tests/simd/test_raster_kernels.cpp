@@ -205,3 +205,59 @@ TEST_CASE("splat_reaches_tiles agrees with splat_reaches_tile on every tile of t
   CHECK(reached > tiles / 20);  // both answers are common (about 9 % reached)
   CHECK(reached < tiles);
 }
+
+// The tile kernels clip each splat to the pixels whose centres lie within splat_support's
+// half-extents of its mean, so those extents must hold every pixel the reference blends (alpha >=
+// 1/255 by eval_splat_ref), for round, slanted and needle-thin splats (the projection's +0.3 px^2
+// dilation included, standard deviations up to 60 px, correlations up to 0.9999) and opacities from
+// just above 1/255 to 1; and they must stay within 0.1 % + 0.05 px of the exact ellipse's extents,
+// sqrt(two_tau cov_xx) and sqrt(two_tau cov_yy) (a wider margin puts rows no pixel reaches into
+// every blend loop).
+TEST_CASE("splat_support holds every pixel the reference blends, within 0.1 % + 0.05 px of the ellipse") {
+  std::mt19937_64 rng(91);
+  std::uniform_real_distribution<double> u(0, 1);
+  size_t splats = 0, pixels = 0;
+  double widest_x = 0, widest_y = 0;  // the largest reached |offset| / extent seen, per axis
+  for (int n = 0; n < 3000; ++n) {
+    const double sx = 0.1 + (n % 4 == 0 ? 60.0 : 5.0) * u(rng), sy = 0.1 + (n % 3 == 0 ? 20.0 : 3.0) * u(rng);
+    const double rho = (n % 5 == 0 ? 0.9999 : 0.95) * (2 * u(rng) - 1);
+    const double cxx = sx * sx + 0.3, cyy = sy * sy + 0.3, cxy = rho * sx * sy, det = cxx * cyy - cxy * cxy;
+    float rec[kSplatStride] = {};
+    rec[gs::simd::kSplatMx] = float(100 * u(rng));
+    rec[gs::simd::kSplatMy] = float(100 * u(rng));
+    rec[gs::simd::kSplatA] = float(cyy / det);
+    rec[gs::simd::kSplatB] = float(-cxy / det);
+    rec[gs::simd::kSplatC] = float(cxx / det);
+    rec[gs::simd::kSplatOpacity] = float(n % 7 == 0 ? (1.0 + 0.05 * u(rng)) / 255.0 : 0.01 + 0.99 * u(rng));
+    gs::simd::splat_support(rec + gs::simd::kSplatA, rec[gs::simd::kSplatOpacity], rec + gs::simd::kSplatTwoTau);
+    const float ex = rec[gs::simd::kSplatExtX], ey = rec[gs::simd::kSplatExtY];
+    CAPTURE(n); CAPTURE(sx); CAPTURE(sy); CAPTURE(rho);
+    REQUIRE(ex >= 0.0f);
+    REQUIRE(ey >= 0.0f);
+    // The exact extents from the float conic (the record's own ellipse), inverted in double.
+    const double a = rec[gs::simd::kSplatA], b = rec[gs::simd::kSplatB], c = rec[gs::simd::kSplatC];
+    const double two_tau = rec[gs::simd::kSplatTwoTau], cdet = a * c - b * b;
+    CHECK(double(ex) <= std::sqrt(two_tau * c / cdet) * 1.0011 + 0.0501);
+    CHECK(double(ey) <= std::sqrt(two_tau * a / cdet) * 1.0011 + 0.0501);
+    // Every pixel centre in a window 2 px wider than the box on each side, at most 400 x 400.
+    const float mx = rec[gs::simd::kSplatMx], my = rec[gs::simd::kSplatMy];
+    const int x0 = int(std::floor(mx - std::min(ex, 200.0f))) - 2, x1 = int(std::ceil(mx + std::min(ex, 200.0f))) + 2;
+    const int y0 = int(std::floor(my - std::min(ey, 200.0f))) - 2, y1 = int(std::ceil(my + std::min(ey, 200.0f))) + 2;
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) {
+        gs::simd::SplatEval<float> e;
+        if (!gs::simd::eval_splat_ref(rec, float(x) + 0.5f, float(y) + 0.5f, &e)) continue;
+        ++pixels;
+        CAPTURE(x); CAPTURE(y);
+        REQUIRE(std::fabs(e.dx) <= ex);
+        REQUIRE(std::fabs(e.dy) <= ey);
+        widest_x = std::max(widest_x, double(std::fabs(e.dx)) / ex);
+        widest_y = std::max(widest_y, double(std::fabs(e.dy)) / ey);
+      }
+    ++splats;
+  }
+  MESSAGE("splat_support: " << splats << " splats, " << pixels << " blended pixels, widest reached offset / extent "
+                            << widest_x << " (x), " << widest_y << " (y)");
+  CHECK(widest_x > 0.99);  // the pixels do reach the box's edges
+  CHECK(widest_y > 0.99);
+}

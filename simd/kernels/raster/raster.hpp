@@ -54,20 +54,21 @@ inline TileGeometry tile_geometry(int32_t width, int32_t height, int32_t tile_x,
 }
 
 // Inclusive tile-local pixel box [bx0, bx1] x [by0, by1] where the splat can reach alpha >= 1/255,
-// from the support fields of its record. Returns false if it reaches no pixel of the tile.
+// from the support fields of its record: the pixels whose centres lie within [ext_x, ext_y] of its
+// mean (splat_support holds the rounding margin). Returns false if it reaches no pixel of the tile.
 inline bool splat_support_box(const float* s, const TileGeometry& g, int32_t* bx0, int32_t* by0, int32_t* bx1,
                               int32_t* by1) {
   const float ex = s[kSplatExtX], ey = s[kSplatExtY];
   if (!(ex >= 0.0f)) return false;  // alpha < 1/255 everywhere
-  // Pixel centre of local column i is x0 + i + 0.5.
+  // Pixel centre of local column i is x0 + i + 0.5, at offset i - lx from the mean.
   const float lx = s[kSplatMx] - float(g.x0) - 0.5f, ly = s[kSplatMy] - float(g.y0) - 0.5f;
   const float fx0 = scalar::max(lx - ex, -1.0f), fx1 = scalar::min(lx + ex, float(kTileSize));
   const float fy0 = scalar::max(ly - ey, -1.0f), fy1 = scalar::min(ly + ey, float(kTileSize));
   if (!(fx0 <= fx1) || !(fy0 <= fy1)) return false;
-  *bx0 = scalar::max(0, int32_t(scalar::floor(fx0)));
-  *bx1 = scalar::min(g.w - 1, int32_t(scalar::ceil(fx1)));
-  *by0 = scalar::max(0, int32_t(scalar::floor(fy0)));
-  *by1 = scalar::min(g.h - 1, int32_t(scalar::ceil(fy1)));
+  *bx0 = scalar::max(0, int32_t(scalar::ceil(fx0)));
+  *bx1 = scalar::min(g.w - 1, int32_t(scalar::floor(fx1)));
+  *by0 = scalar::max(0, int32_t(scalar::ceil(fy0)));
+  *by1 = scalar::min(g.h - 1, int32_t(scalar::floor(fy1)));
   return *bx0 <= *bx1 && *by0 <= *by1;
 }
 

@@ -47,21 +47,26 @@ inline namespace GS_SIMD_ISA_NS {  // inline code: per-ISA copies (gs/simd/isa.h
 
 // Support of a splat: two_tau = 2 ln(255 o), so alpha >= 1/255 needs power >= -two_tau / 2, and the
 // half-extents (px) of the box outside which alpha is provably below 1/255 (|d_x| <= sqrt(two_tau
-// cov_xx), cov = conic^-1), plus a 1 px margin for rounding. out = [two_tau, ext_x, ext_y]; a splat
+// cov_xx), cov = conic^-1). The extents are computed in double (the determinant cancels for slanted,
+// thin splats) and widened by 0.1 % + 0.05 px: the kernels' float exponent errs by about 1e-7 x
+// (a dx^2 + |2 b dx dy| + c dy^2), which stays under that margin for any splat up to a standard
+// deviation of about 100 px along its major axis (the +0.3 px^2 dilation bounds how thin it is);
+// beyond that a pixel at the exact edge may flip, a threshold tie. (A 1 px margin, with the box rounded outwards on top, put 27 % of a splat's box
+// rows outside its ellipse: blend steps that reach no pixel.) out = [two_tau, ext_x, ext_y]; a splat
 // that can never reach 1/255 gets negative extents; a non-positive-definite conic gets an unbounded
 // box (1e30), which the kernels clip to the tile.
 inline void splat_support(const float* conic, float opacity, float* out) {
-  const float a = conic[0], b = conic[1], c = conic[2];
+  const double a = conic[0], b = conic[1], c = conic[2];
   if (!(opacity * 255.0f >= 1.0f)) {
     out[0] = -1.0f; out[1] = out[2] = -1.0f;
     return;
   }
   const float two_tau = 2.0f * scalar::log(255.0f * opacity);
-  const float det = a * c - b * b;
+  const double det = a * c - b * b;
   out[0] = two_tau;
-  if (det > 0.0f && a > 0.0f) {
-    out[1] = scalar::sqrt(two_tau * c / det) + 1.0f;
-    out[2] = scalar::sqrt(two_tau * a / det) + 1.0f;
+  if (det > 0.0 && a > 0.0) {
+    out[1] = float(scalar::sqrt(double(two_tau) * c / det) * 1.001 + 0.05);
+    out[2] = float(scalar::sqrt(double(two_tau) * a / det) * 1.001 + 0.05);
   } else {
     out[1] = out[2] = 1e30f;
   }
