@@ -188,6 +188,10 @@ Command add_train_command(CLI::App& parent) {
                   "Growth budget: neural Gaussians per training view at most this many per pixel (0: none)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e6));
+  sub->add_option("--opacity-reg", o->opacity_reg,
+                  "Weight of an opacity term in the loss (x mean opacity of the kept Gaussians): Gaussians that do not pay for themselves fade and are dropped (0: none)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   sub->add_option("--voxel-size", o->voxel_size, "Anchor voxel size in world units (0: automatic)")
       ->capture_default_str()
       ->check(CLI::Range(0.0f, 1e9f));

@@ -271,14 +271,17 @@ void check_step_fd(uint64_t seed, bool image_features) {
   StepWorkspace<double> ws;
   ws.reserve(prob.M, prob.k, prob.shapes, prob.G, prob.W, prob.H);
   StepConfig cfg;
+  cfg.opacity_weight = 0.05;  // the opacity term's gradient is checked with the rest
   StepResult r0;
   REQUIRE(step_forward_backward(be, b.params, prob.cam, b.target.data(), cfg, ws, &b.grads, &r0).ok());
   MESSAGE("seed " << seed << std::string(image_features ? " (paper)" : " (none)") << ": loss " << r0.loss << ", " << r0.visible_anchors
                   << " visible anchors, " << r0.gaussians << " Gaussians");
   REQUIRE(r0.visible_anchors == prob.M - 1);  // all but the one behind the camera
   REQUIRE(r0.gaussians >= size_t(prob.M));    // a good share of candidates kept
-  CHECK(r0.loss == doctest::Approx((1 - cfg.ssim_lambda) * r0.l1 + cfg.ssim_lambda * (1 - r0.ssim) + r0.volume));
+  CHECK(r0.loss ==
+        doctest::Approx((1 - cfg.ssim_lambda) * r0.l1 + cfg.ssim_lambda * (1 - r0.ssim) + r0.volume + r0.opacity));
   CHECK(r0.volume > 0);
+  CHECK(r0.opacity > 0);
 
   // Structure of a forward: backend signature, visible rows, kept sources.
   auto forward = [&](uint64_t* sig) {

@@ -62,6 +62,9 @@ struct TrainRunOptions {
   // Growth budget: neural Gaussians per training view at most this many per pixel of the view (0: no
   // budget; model::TrainOptions::growth_gaussians_per_pixel).
   double gaussians_per_pixel = 0;
+  // Weight of the opacity term, x mean opacity of the kept Gaussians (model::StepConfig::
+  // opacity_weight; 0: none).
+  double opacity_reg = 0;
   float voxel_size = 0.0f;  // anchor voxel size in world units (0: automatic)
   // A dataset without a point cloud whose training views all have masks starts from points carved
   // from the masks (gs::io::carve_points_from_masks) instead of its random points; false: random.

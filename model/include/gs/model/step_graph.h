@@ -72,10 +72,14 @@ struct ModelGradsT {
 struct StepConfig {
   double ssim_lambda = simd::kLossLambda;  // (must match the backend's loss parameters)
   double volume_weight = 0.01;             // x mean over kept Gaussians of s_x s_y s_z
+  // x mean over kept Gaussians of their opacity: an L1 push towards transparency that the
+  // photometric loss must pay for, so Gaussians that do not earn their place fade (and the decoder
+  // drops them once the opacity MLP's output is <= 0). 0: no term.
+  double opacity_weight = 0;
 };
 
 struct StepResult {
-  double loss = 0, l1 = 0, ssim = 0, volume = 0;
+  double loss = 0, l1 = 0, ssim = 0, volume = 0, opacity = 0;
   size_t visible_anchors = 0, gaussians = 0;
 };
 
@@ -455,11 +459,18 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
   out->gaussians = N;
   out->volume = volume_term(pool, N, ws.log_scales.data(), cfg.volume_weight, ws.v_ls_volume.data(),
                             ws.v_means2d.data(), ws.v_means2d.size() * sizeof(T));
-  out->loss = (1 - cfg.ssim_lambda) * l1 + cfg.ssim_lambda * (1 - ssim) + out->volume;
+  out->opacity = 0;
+  if (cfg.opacity_weight != 0 && N > 0) {
+    double sum = 0;  // serial, in index order: the same bits on any pool
+    for (size_t n = 0; n < N; ++n) sum += double(ws.opacities[n]);
+    out->opacity = cfg.opacity_weight * sum / double(N);
+  }
+  out->loss = (1 - cfg.ssim_lambda) * l1 + cfg.ssim_lambda * (1 - ssim) + out->volume + out->opacity;
   clock.lap(kStageLoss);
   if (!grads) return Status::Ok();
 
-  // Backward through the renderer (the volume term adds to its log-scale gradient).
+  // Backward through the renderer (the volume term adds to its log-scale gradient, the opacity term
+  // weight / N to every kept Gaussian's opacity gradient).
   double v_pose[6] = {0, 0, 0, 0, 0, 0};
   GS_RETURN_IF_ERROR(be.render_bwd(ws.v_rgb.data(), ws.v_means.data(), ws.v_log_scales.data(), ws.v_quats.data(),
                                    ws.v_opacities.data(), ws.v_colors.data(), ws.v_means2d.data(), v_pose));
@@ -470,6 +481,11 @@ Status step_forward_backward(Backend& be, const ModelParamsT<T>& p, const Camera
     detail::parallel_ranges(pool, 3 * N, 8192, [&](size_t b, size_t e) {
       for (size_t i = b; i < e; ++i) v_ls[i] += v_vol[i];
     });
+    if (cfg.opacity_weight != 0 && N > 0) {
+      const T v_op = T(cfg.opacity_weight / double(N));
+      T* v_opacities = ws.v_opacities.data();
+      for (size_t n = 0; n < N; ++n) v_opacities[n] += v_op;
+    }
   }
   clock.lap(kStageLoss);
 
