@@ -51,10 +51,11 @@ inline namespace GS_SIMD_ISA_NS {  // inline code: per-ISA copies (gs/simd/isa.h
 // thin splats) and widened by 0.1 % + 0.05 px: the kernels' float exponent errs by about 1e-7 x
 // (a dx^2 + |2 b dx dy| + c dy^2), which stays under that margin for any splat up to a standard
 // deviation of about 100 px along its major axis (the +0.3 px^2 dilation bounds how thin it is);
-// beyond that a pixel at the exact edge may flip, a threshold tie. (A 1 px margin, with the box rounded outwards on top, put 27 % of a splat's box
-// rows outside its ellipse: blend steps that reach no pixel.) out = [two_tau, ext_x, ext_y]; a splat
-// that can never reach 1/255 gets negative extents; a non-positive-definite conic gets an unbounded
-// box (1e30), which the kernels clip to the tile.
+// beyond that a pixel at the exact edge may flip, a threshold tie. (A 1 px margin, with the box
+// rounded outwards on top, added up to two rows and columns on each side that the ellipse never
+// reaches: blend steps for nothing.) out = [two_tau, ext_x, ext_y]; a splat that can never reach
+// 1/255 gets negative extents; a non-positive-definite conic gets an unbounded box (1e30), which the
+// kernels clip to the tile.
 inline void splat_support(const float* conic, float opacity, float* out) {
   const double a = conic[0], b = conic[1], c = conic[2];
   if (!(opacity * 255.0f >= 1.0f)) {
