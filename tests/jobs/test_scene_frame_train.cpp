@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // Far and scaled scenes train like the original (gs/scene_frame.h): the built-in scene at a reduced
 // size, moved by 1e5 and 1e7 units and scaled by 1e-3 and 1e3 (written as binary COLMAP, doubles),
-// trains to the original's test PSNR within 0.1 dB, and what the run writes for the user is in the
+// trains to the original's test PSNR within 0.1 dB (without growth, which is chaotic in a run this
+// short: train_and_export), and what the run writes for the user is in the
 // user's frame: the exported PLY's Gaussians and the refined poses.
 #include <algorithm>
 #include <cmath>
@@ -84,7 +85,13 @@ gs::jobs::TrainRunOptions short_run(const std::string& dataset, const fs::path& 
 // (refined_poses/; the noise is relative to the scene, so the same in every frame).
 Outcome train_and_export(const std::string& dataset, const fs::path& out) {
   Outcome r;
-  const gs::jobs::TrainRunOptions o = short_run(dataset, out / "run", 300);
+  gs::jobs::TrainRunOptions o = short_run(dataset, out / "run", 300);
+  // No growth: its threshold decisions make a run this short chaotic. The last-bit differences the
+  // recentring leaves in the input at 1e5 and 1e7 (a pose's translation is t + R centre in double)
+  // moved the test PSNR by up to 1.2 dB with growth on (seeds 3-6, avx2 and sse2), about as much as
+  // the seed does; without it they move it by at most 0.07 dB, so 0.1 dB tells a frame that works
+  // from one that loses precision. The initial anchors still lie on the frame's voxel grid.
+  o.gaussians_per_pixel = 1e-9;
   gs::jobs::TrainRunSummary s;
   const gs::Status st = gs::jobs::train_run(o, nullptr, &s);
   REQUIRE_MESSAGE(st.ok(), st.to_string());
