@@ -2,8 +2,8 @@
 // Far and scaled scenes train like the original (gs/scene_frame.h): the built-in scene at a reduced
 // size, moved by 1e5 and 1e7 units and scaled by 1e-3 and 1e3 (written as binary COLMAP, doubles),
 // trains to the original's test PSNR within 0.1 dB (without growth, which is chaotic in a run this
-// short: train_and_export), and what the run writes for the user is in the
-// user's frame: the exported PLY's Gaussians and the refined poses.
+// short: train_and_export), and what the run writes for the user is in the user's frame: the
+// exported PLY's Gaussians and the refined poses.
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
