@@ -29,7 +29,7 @@ if ! command -v clang++ >/dev/null; then
   exit 1
 fi
 CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGS_BUILD_FUZZ=ON \
-  -DGS_BUILD_TESTS=OFF -DGS_BUILD_BENCH=OFF -DGS_BUILD_APPS=OFF -DGS_WITH_EMBREE=OFF -DGS_WITH_LIBCAMERA=OFF >/dev/null
+  -DGS_BUILD_TESTS=OFF -DGS_BUILD_BENCH=OFF -DGS_BUILD_APPS=OFF -DGS_WITH_EMBREE=OFF -DGS_WITH_LIBCAMERA=OFF -DCMAKE_UNITY_BUILD=ON >/dev/null
 cmake --build "$build" -j"$jobs" --target fuzz_all
 echo "fuzz.sh: configure + build took $((SECONDS - t0)) s"
 

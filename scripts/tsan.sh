@@ -15,7 +15,7 @@ build=build/tsan
 t0=$SECONDS
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGS_SANITIZE_THREAD=ON \
   -DGS_BUILD_BENCH=OFF -DGS_BUILD_APPS=OFF -DGS_WITH_EMBREE=OFF -DGS_WITH_LIBCAMERA=OFF -DGS_WITH_LIBAV=OFF \
-  -DGS_TEST_REDUCED_SUITES=ON >/dev/null
+  -DGS_TEST_REDUCED_SUITES=ON -DCMAKE_UNITY_BUILD=ON >/dev/null
 suites=(test_platform test_render test_trainer_qemu test_register_qemu)
 cmake --build "$build" -j"$jobs" --target "${suites[@]}"
 echo "tsan.sh: configure + build took $((SECONDS - t0)) s"

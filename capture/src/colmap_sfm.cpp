@@ -20,6 +20,7 @@
 #include "gs/platform/file.h"
 #include "gs/platform/process.h"
 #include "gs/pose/pose.h"
+#include "gs/stats.h"
 
 namespace gs::capture {
 namespace fs = std::filesystem;
@@ -170,12 +171,6 @@ bool align_centres(const std::vector<double>& x, const std::vector<double>& y, d
   return true;
 }
 
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + long(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 }  // namespace
 
 std::vector<std::string> SfmConsistency::suspect_names() const {
@@ -243,7 +238,7 @@ SfmConsistency compare_to_runs(const io::ColmapModel& chosen, const std::vector<
     if (v.check_runs > 0) rotations.push_back(v.rotation_deg);
     c.rotation_max_deg = std::max(c.rotation_max_deg, v.rotation_deg);
   }
-  c.rotation_median_deg = median_of(rotations);
+  c.rotation_median_deg = upper_median_in_place(rotations);
   return c;
 }
 

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "gs/io/box_filter.h"
+#include "gs/stats.h"
 
 namespace gs::capture {
 namespace {
@@ -42,12 +43,6 @@ void thumbnail(const float* grey, int32_t w, int32_t h, float* thumb) {
       io::SpanAxis{w, kThumbW}, io::SpanAxis{h, kThumbH}, kThumbW, kThumbH,
       [&](Mean& m, int x, int y) { m.sum += grey[size_t(y) * size_t(w) + size_t(x)], ++m.n; },
       [&](size_t i, const Mean& m) { thumb[i] = m.n > 0 ? float(m.sum / m.n / 255.0) : 0.0f; });
-}
-
-double median_of(std::vector<double>& v) {
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + long(mid), v.end());
-  return v[mid];
 }
 
 // Stretches with no usable frame (fast motion, a blurred burst) leave the count short; top it up
@@ -143,7 +138,7 @@ std::vector<size_t> select_frames(const std::vector<FrameStats>& stats, const Se
     const size_t hi = std::min(n, i + size_t(o.blur_window) + 1);
     window.clear();
     for (size_t j = lo; j < hi; ++j) window.push_back(stats[j].sharpness);
-    if (stats[i].sharpness < o.blur_ratio * median_of(window)) {
+    if (stats[i].sharpness < o.blur_ratio * upper_median_in_place(window)) {
       sharp[i] = false;
       ++blurred;
     }

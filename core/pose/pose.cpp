@@ -13,11 +13,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include "gs/constants.h"
 
 namespace gs::pose {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kRadToDeg = 180.0 / kPi;
 // Below this angle the closed forms lose digits to cancellation; the Taylor series up to
 // theta^6 used instead have a truncation error below 1e-17 there.

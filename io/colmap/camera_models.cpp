@@ -5,11 +5,10 @@
 #include <cmath>
 
 #include "gs/io/colmap.h"
+#include "gs/constants.h"
 
 namespace gs::io {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // The fisheye models' parameters in one form: fx, fy, cx, cy and either the equidistant polynomial
 // theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8), or FOV's omega.

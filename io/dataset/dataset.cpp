@@ -22,11 +22,11 @@
 #include "gs/platform/path.h"
 #include "gs/pose/pose.h"
 #include "gs/scene_frame.h"
+#include "gs/constants.h"
 
 namespace gs::io {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 double degrees(double radians) { return radians * 180 / kPi; }
 
 // How a camera becomes a pinhole view: its stored camera in DatasetFileView's form, the pinhole it

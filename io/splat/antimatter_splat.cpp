@@ -18,7 +18,7 @@ namespace {
 
 constexpr size_t kRecordBytes = 32;
 
-Expected<GaussianCloud> parse(const uint8_t* data, size_t size, const std::string& src) {
+Expected<GaussianCloud> parse_antimatter_unguarded(const uint8_t* data, size_t size, const std::string& src) {
   if (size == 0) return parse_error(src + ": empty file (a .splat holds 32 bytes per splat)");
   if (size % kRecordBytes != 0)
     return parse_error(src + ": " + std::to_string(size) + " bytes is not a whole number of 32-byte .splat records (" +
@@ -59,11 +59,11 @@ Expected<GaussianCloud> parse(const uint8_t* data, size_t size, const std::strin
 }  // namespace
 
 Expected<GaussianCloud> parse_antimatter_splat(const uint8_t* data, size_t size, const std::string& source) {
-  return detail::guarded(source, [&]() { return parse(data, size, source); });
+  return detail::guarded(source, [&]() { return parse_antimatter_unguarded(data, size, source); });
 }
 
 Expected<GaussianCloud> read_antimatter_splat(const std::string& path) {
-  return detail::read_and_parse(path, parse);
+  return detail::read_and_parse(path, parse_antimatter_unguarded);
 }
 
 Expected<std::vector<uint8_t>> encode_antimatter_splat(const GaussianCloud& cloud) {

@@ -40,7 +40,7 @@ constexpr const char* kVertexProps[4] = {"packed_position", "packed_rotation", "
 // Log scales are bounded to this range in the chunk bounds (as PlayCanvas's writer does): e^-20
 // and e^20 are far outside any scene, and the bound keeps degenerate inputs from wrecking a chunk.
 constexpr float kLogScaleLimit = 20.0f;
-constexpr double kSqrtHalf = 0.70710678118654752440;
+using detail::kSqrtHalf;
 
 float unorm(uint32_t code, int bits) { return float(code & ((1u << bits) - 1)) / float((1u << bits) - 1); }
 float lerp(float a, float b, float t) { return a * (1.0f - t) + b * t; }
@@ -134,7 +134,7 @@ const uint8_t* element_data(const uint8_t* data, const detail::PlyHeader& h, con
   return data + at;
 }
 
-Expected<GaussianCloud> parse(const uint8_t* data, size_t size, const std::string& src) {
+Expected<GaussianCloud> parse_compressed_ply_unguarded(const uint8_t* data, size_t size, const std::string& src) {
   detail::PlyHeader h;
   GS_RETURN_IF_ERROR(detail::parse_ply_header(data, size, src, detail::kMaxSplats, &h));
   Layout l;
@@ -321,11 +321,11 @@ Expected<std::vector<uint8_t>> encode(const GaussianCloud& cloud, std::vector<ui
 }  // namespace
 
 Expected<GaussianCloud> parse_compressed_ply(const uint8_t* data, size_t size, const std::string& source) {
-  return detail::guarded(source, [&]() { return parse(data, size, source); });
+  return detail::guarded(source, [&]() { return parse_compressed_ply_unguarded(data, size, source); });
 }
 
 Expected<GaussianCloud> read_compressed_ply(const std::string& path) {
-  return detail::read_and_parse(path, parse);
+  return detail::read_and_parse(path, parse_compressed_ply_unguarded);
 }
 
 Expected<std::vector<uint8_t>> encode_compressed_ply(const GaussianCloud& cloud, std::vector<uint32_t>* order) {

@@ -23,6 +23,10 @@ constexpr uint64_t kMaxSplats = 100'000'000;
 // The degree-0 SH basis constant: colour = 0.5 + kShC0 * dc (the 3DGS convention).
 constexpr double kShC0 = 0.28209479177387814;
 
+// 1/sqrt(2): the bound of a unit quaternion's three smallest components (smallest-three packing in
+// .spz v3 and compressed.ply).
+constexpr double kSqrtHalf = 0.70710678118654752440;
+
 inline double sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
 
 // v rounded to the nearest integer and clamped to [0, max_code] (NaN gives 0; writers refuse NaN

@@ -64,7 +64,7 @@ std::string no_codec(int version) {
 constexpr size_t kGzipHeaderBytes = 16;  // v2, v3: inside the gzip stream
 constexpr uint8_t kFlagExtensions = 0x2;  // 0x1 (trained antialiased) changes nothing hbgs reads
 constexpr float kColourScale = 0.15f;          // the format's DC colour scale
-constexpr double kSqrtHalf = 0.70710678118654752440;
+using detail::kSqrtHalf;
 
 // Sign of each SH coefficient k = 1..15 (index k - 1) under the frame change (x, y, z) -> (x, -y, -z)
 // between RDF and RUB: the real SH basis functions of 3DGS that are odd in y*z-parity flip
@@ -463,7 +463,7 @@ Expected<GaussianCloud> parse_zstd(const uint8_t* data, size_t size, const std::
 
 #endif  // GS_HAVE_ZSTD
 
-Expected<GaussianCloud> parse(const uint8_t* data, size_t size, const std::string& src) {
+Expected<GaussianCloud> parse_spz_unguarded(const uint8_t* data, size_t size, const std::string& src) {
   if (size >= 4 && detail::load_u32(data) == kSpzMagic) {  // version 4 keeps its header outside compression
 #if GS_HAVE_ZSTD
     return parse_zstd(data, size, src);
@@ -653,7 +653,7 @@ bool spz_version_supported(int version) {
 bool spz_supported() { return spz_version_supported(2) && spz_version_supported(3) && spz_version_supported(4); }
 
 Expected<GaussianCloud> parse_spz(const uint8_t* data, size_t size, const std::string& source) {
-  return detail::guarded(source, [&]() { return parse(data, size, source); });
+  return detail::guarded(source, [&]() { return parse_spz_unguarded(data, size, source); });
 }
 
 Expected<GaussianCloud> read_spz(const std::string& path) {

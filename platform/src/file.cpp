@@ -17,10 +17,12 @@
 #include <system_error>
 #include <vector>
 
+#include "errno_text.h"
+
 namespace gs::platform {
 namespace {
 
-std::string errno_text(int err) { return std::generic_category().message(err); }
+using detail::errno_text;
 
 std::string quoted(const std::string& path) { return "'" + path + "'"; }
 

@@ -17,16 +17,17 @@
 #include <system_error>
 
 #include "gs/platform/clock.h"
+#include "errno_text.h"
 
 namespace gs::platform {
 namespace {
+
+using detail::errno_text;
 
 bool is_executable_file(const std::string& path) {
   struct stat st;
   return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::access(path.c_str(), X_OK) == 0;
 }
-
-std::string errno_text(int err) { return std::generic_category().message(err); }
 
 }  // namespace
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Helpers for the gs_io tests: a self-deleting temp folder, raw file writes, the shared-data path
-// and substring checks on error messages.
+// Helpers for the gs_io tests: a self-deleting temp folder, raw file and image writes, the
+// shared-data path and substring checks on error messages.
 #pragma once
 
 #include <doctest/doctest.h>
@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "gs/io/image.h"
 #include "gs/status.h"
 #include "support/temp_dir.h"
 
@@ -29,6 +30,16 @@ inline void write_bytes(const std::string& path, const std::vector<uint8_t>& byt
   write_bytes(path, bytes.data(), bytes.size());
 }
 inline void write_text(const std::string& path, const std::string& text) { write_bytes(path, text.data(), text.size()); }
+
+// An image file written with hbgs's own writers, its folder made first.
+inline void put_png(const std::string& path, const Image8& img) {
+  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+  REQUIRE(write_png(path, img).ok());
+}
+inline void put_jpeg(const std::string& path, const Image8& img) {
+  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+  REQUIRE(write_jpeg(path, img).ok());
+}
 
 inline std::vector<uint8_t> read_bytes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);

@@ -12,6 +12,8 @@ namespace gs::io {
 namespace {
 
 using test::check_error;
+using test::put_jpeg;
+using test::put_png;
 using test::TempDir;
 
 // A COLMAP text model with one PINHOLE camera of W x H and one image per name (no files written).
@@ -31,15 +33,6 @@ void write_model(const std::string& root, int W, int H, const std::vector<std::s
   m.points.push_back(p);
   REQUIRE(write_colmap_text(m, root + "/sparse/0").ok());
   std::filesystem::create_directories(root + "/images");
-}
-
-void put_png(const std::string& path, const Image8& img) {
-  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
-  REQUIRE(write_png(path, img).ok());
-}
-void put_jpeg(const std::string& path, const Image8& img) {
-  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
-  REQUIRE(write_jpeg(path, img).ok());
 }
 
 // W x H image with `channels` channels; pixel value a function of position and channel.

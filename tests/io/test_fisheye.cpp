@@ -9,14 +9,13 @@
 
 #include "gs/io/colmap.h"
 #include "io_test_util.h"
+#include "gs/constants.h"
 
 namespace gs::io {
 namespace {
 
 using test::check_error;
 using test::TempDir;
-
-constexpr double kPi = 3.14159265358979323846;
 
 // A fisheye in one form for the test: fx fy cx cy and the equidistant polynomial or FOV's omega.
 struct Lens {

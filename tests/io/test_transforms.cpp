@@ -17,6 +17,7 @@ namespace gs::io {
 namespace {
 
 using test::check_error;
+using test::put_png;
 using test::TempDir;
 
 struct Vec {
@@ -46,11 +47,6 @@ Vec ring_eye(int i, int n, double radius, double height) {
   return {radius * std::cos(a), radius * std::sin(a), height};
 }
 
-void put_png(const std::string& path, const Image8& img) {
-  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
-  REQUIRE(write_png(path, img).ok());
-}
-
 Image8 rgba_image(int W, int H, int seed) {
   Image8 img{W, H, 4, std::vector<uint8_t>(size_t(W) * H * 4)};
   for (size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = uint8_t((i * 29 + size_t(seed) * 7) % 256);
@@ -65,7 +61,7 @@ Vec to_camera(const Pose& p, Vec X) {
   return {c[0], c[1], c[2]};
 }
 
-Status parse(const std::string& text, TransformsFile* out = nullptr) {
+Status parse_text(const std::string& text, TransformsFile* out = nullptr) {
   TransformsFile f;
   return parse_transforms_json(text, "t.json", out ? out : &f);
 }
@@ -117,7 +113,7 @@ TEST_CASE("parse_transforms_json: fields, overrides and split lists") {
     "frames": [{"file_path": "images/a.png", "transform_matrix": )" + std::string(kIdentity) + R"(},
                {"file_path": "images/b", "fl_x": 200, "mask_path": "masks/b.png",
                 "transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]]}]})";
-  REQUIRE(parse(text, &f).ok());
+  REQUIRE(parse_text(text, &f).ok());
   REQUIRE(f.frames.size() == 2);
   CHECK(*f.frames[0].intrinsics.fl_x == 100);
   CHECK(*f.frames[1].intrinsics.fl_x == 200);  // the frame's own key wins
@@ -139,39 +135,39 @@ TEST_CASE("parse_transforms_json: fields, overrides and split lists") {
 TEST_CASE("parse_transforms_json: malformed files name the file, frame and key") {
   const std::string I = kIdentity;
   auto frames = [&](const std::string& body) { return "{\"fl_x\": 10, \"frames\": [" + body + "]}"; };
-  check_error(parse("{\"frames\": [\n  {\"file_path\": \"a\",, }]}"), {"t.json", "not valid JSON", "line 2", "column"});
-  check_error(parse("{\"frames\": [1e999]}"), {"t.json", "not valid JSON", "overflow"});
-  check_error(parse("[1, 2]"), {"t.json", "top level must be a JSON object"});
-  check_error(parse("{}"), {"t.json", "no 'frames' array"});
-  check_error(parse("{\"frames\": {}}"), {"'frames' must be an array"});
-  check_error(parse("{\"frames\": []}"), {"'frames' is empty"});
-  check_error(parse(frames("{\"file_path\": \"a\", \"transform_matrix\": " + I + "}, 3")), {"t.json: frame 1: not a JSON object"});
-  check_error(parse(frames("{\"transform_matrix\": " + I + "}")), {"frame 0: no 'file_path'"});
-  check_error(parse(frames("{\"file_path\": 7, \"transform_matrix\": " + I + "}")), {"frame 0: 'file_path' must be a non-empty string"});
-  check_error(parse(frames("{\"file_path\": \"a\"}")), {"frame 0: no 'transform_matrix'"});
-  check_error(parse(frames("{\"file_path\": \"a\", \"transform_matrix\": [[1, 0, 0]]}")), {"frame 0", "array of 4 (or 3) rows"});
-  check_error(parse(frames("{\"file_path\": \"a\", \"transform_matrix\": " + I + "}, {\"file_path\": \"b\", \"transform_matrix\": "
+  check_error(parse_text("{\"frames\": [\n  {\"file_path\": \"a\",, }]}"), {"t.json", "not valid JSON", "line 2", "column"});
+  check_error(parse_text("{\"frames\": [1e999]}"), {"t.json", "not valid JSON", "overflow"});
+  check_error(parse_text("[1, 2]"), {"t.json", "top level must be a JSON object"});
+  check_error(parse_text("{}"), {"t.json", "no 'frames' array"});
+  check_error(parse_text("{\"frames\": {}}"), {"'frames' must be an array"});
+  check_error(parse_text("{\"frames\": []}"), {"'frames' is empty"});
+  check_error(parse_text(frames("{\"file_path\": \"a\", \"transform_matrix\": " + I + "}, 3")), {"t.json: frame 1: not a JSON object"});
+  check_error(parse_text(frames("{\"transform_matrix\": " + I + "}")), {"frame 0: no 'file_path'"});
+  check_error(parse_text(frames("{\"file_path\": 7, \"transform_matrix\": " + I + "}")), {"frame 0: 'file_path' must be a non-empty string"});
+  check_error(parse_text(frames("{\"file_path\": \"a\"}")), {"frame 0: no 'transform_matrix'"});
+  check_error(parse_text(frames("{\"file_path\": \"a\", \"transform_matrix\": [[1, 0, 0]]}")), {"frame 0", "array of 4 (or 3) rows"});
+  check_error(parse_text(frames("{\"file_path\": \"a\", \"transform_matrix\": " + I + "}, {\"file_path\": \"b\", \"transform_matrix\": "
                            "[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, \"x\"], [0, 0, 0, 1]]}")),
               {"frame 1", "entry (2, 3) is not a number"});
-  check_error(parse(frames("{\"file_path\": \"a\", \"transform_matrix\": [[2, 0, 0, 0], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]]}")),
+  check_error(parse_text(frames("{\"file_path\": \"a\", \"transform_matrix\": [[2, 0, 0, 0], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]]}")),
               {"frame 0", "not a camera pose", "not orthonormal"});
-  check_error(parse(frames("{\"file_path\": \"a\", \"transform_matrix\": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1, 0], [0, 0, 0, 1]]}")),
+  check_error(parse_text(frames("{\"file_path\": \"a\", \"transform_matrix\": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1, 0], [0, 0, 0, 1]]}")),
               {"frame 0", "reflection"});
-  check_error(parse(frames("{\"file_path\": \"a\", \"transform_matrix\": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [1, 0, 0, 1]]}")),
+  check_error(parse_text(frames("{\"file_path\": \"a\", \"transform_matrix\": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [1, 0, 0, 1]]}")),
               {"frame 0", "last row"});
-  check_error(parse("{\"fl_x\": -3, \"frames\": [{\"file_path\": \"a\", \"transform_matrix\": " + I + "}]}"), {"t.json: 'fl_x' must be > 0"});
-  check_error(parse("{\"fl_x\": \"ten\", \"frames\": []}"), {"'fl_x' must be a number"});
-  check_error(parse(frames("{\"file_path\": \"a\", \"w\": 10.5, \"transform_matrix\": " + I + "}")), {"frame 0", "'w' must be a whole number"});
-  check_error(parse(frames("{\"file_path\": \"a\", \"camera_angle_x\": 4, \"transform_matrix\": " + I + "}")), {"frame 0", "below pi"});
-  check_error(parse("{\"train_filenames\": \"a\", \"frames\": []}"), {"'train_filenames' must be an array"});
-  check_error(parse("{\"ply_file_path\": 3, \"frames\": []}"), {"'ply_file_path' must be a non-empty string"});
-  const Status fisheye = parse("{\"camera_model\": \"OPENCV_FISHEYE\", \"frames\": []}");
+  check_error(parse_text("{\"fl_x\": -3, \"frames\": [{\"file_path\": \"a\", \"transform_matrix\": " + I + "}]}"), {"t.json: 'fl_x' must be > 0"});
+  check_error(parse_text("{\"fl_x\": \"ten\", \"frames\": []}"), {"'fl_x' must be a number"});
+  check_error(parse_text(frames("{\"file_path\": \"a\", \"w\": 10.5, \"transform_matrix\": " + I + "}")), {"frame 0", "'w' must be a whole number"});
+  check_error(parse_text(frames("{\"file_path\": \"a\", \"camera_angle_x\": 4, \"transform_matrix\": " + I + "}")), {"frame 0", "below pi"});
+  check_error(parse_text("{\"train_filenames\": \"a\", \"frames\": []}"), {"'train_filenames' must be an array"});
+  check_error(parse_text("{\"ply_file_path\": 3, \"frames\": []}"), {"'ply_file_path' must be a non-empty string"});
+  const Status fisheye = parse_text("{\"camera_model\": \"OPENCV_FISHEYE\", \"frames\": []}");
   check_error(fisheye, {"camera_model 'OPENCV_FISHEYE' is not supported"});
   CHECK(fisheye.code() == StatusCode::kUnsupported);
-  const Status k3 = parse(frames("{\"file_path\": \"a\", \"k3\": 0.1, \"transform_matrix\": " + I + "}"));
+  const Status k3 = parse_text(frames("{\"file_path\": \"a\", \"k3\": 0.1, \"transform_matrix\": " + I + "}"));
   check_error(k3, {"frame 0", "'k3'", "k1, k2, p1, p2"});
   CHECK(k3.code() == StatusCode::kUnsupported);
-  CHECK(parse(frames("{\"file_path\": \"a\", \"k3\": 0, \"k4\": 0, \"transform_matrix\": " + I + "}")).ok());
+  CHECK(parse_text(frames("{\"file_path\": \"a\", \"k3\": 0, \"k4\": 0, \"transform_matrix\": " + I + "}")).ok());
 }
 
 // A NeRF synthetic style folder: transforms_{train,val,test}.json, camera_angle_x only, RGBA PNGs
@@ -460,7 +456,7 @@ TEST_CASE("random_points_in_common_view: inside every camera's view, seeded, and
   for (int i = 0; i < 12; ++i) {
     const Vec eye = ring_eye(i, 12, 5.0, 2.0);
     TransformsFile f;
-    REQUIRE(parse("{\"frames\": [{\"file_path\": \"a\", \"transform_matrix\": " + gl_matrix(eye, {0, 0, 0.3}) + "}]}", &f).ok());
+    REQUIRE(parse_text("{\"frames\": [{\"file_path\": \"a\", \"transform_matrix\": " + gl_matrix(eye, {0, 0, 0.3}) + "}]}", &f).ok());
     double q[4], t[3];
     REQUIRE(pose_from_transform_matrix(f.frames[0].transform_matrix, q, t).empty());
     ring.push_back({K, pose_from_colmap(q, t)});
@@ -500,7 +496,7 @@ TEST_CASE("random_points_in_common_view: inside every camera's view, seeded, and
   for (int i = 0; i < 4; ++i) {
     const Vec eye = ring_eye(i, 4, 1.0, 0.0);
     TransformsFile f;
-    REQUIRE(parse("{\"frames\": [{\"file_path\": \"a\", \"transform_matrix\": " + gl_matrix(eye, {3 * eye.x, 3 * eye.y, 0}) + "}]}", &f).ok());
+    REQUIRE(parse_text("{\"frames\": [{\"file_path\": \"a\", \"transform_matrix\": " + gl_matrix(eye, {3 * eye.x, 3 * eye.y, 0}) + "}]}", &f).ok());
     double q[4], t[3];
     REQUIRE(pose_from_transform_matrix(f.frames[0].transform_matrix, q, t).empty());
     outward.push_back({K, pose_from_colmap(q, t)});
@@ -621,7 +617,7 @@ TEST_CASE("carve_points_from_masks: points on the surface the views see, coloure
     for (int i = 0; i < 12; ++i) {
       const Vec eye = ring_eye(i, 12, 5.0, height);
       TransformsFile f;
-      REQUIRE(parse("{\"frames\": [{\"file_path\": \"a\", \"transform_matrix\": " + gl_matrix(eye, C) + "}]}", &f).ok());
+      REQUIRE(parse_text("{\"frames\": [{\"file_path\": \"a\", \"transform_matrix\": " + gl_matrix(eye, C) + "}]}", &f).ok());
       double q[4], t[3];
       REQUIRE(pose_from_transform_matrix(f.frames[0].transform_matrix, q, t).empty());
       views.push_back(sphere_view({K, pose_from_colmap(q, t)}, C, r, "v" + std::to_string(views.size())));

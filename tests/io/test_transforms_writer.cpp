@@ -15,12 +15,8 @@ namespace gs::io {
 namespace {
 
 using test::check_error;
+using test::put_png;
 using test::TempDir;
-
-void put_png(const std::string& path, const Image8& img) {
-  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
-  REQUIRE(write_png(path, img).ok());
-}
 
 Image8 grey_image(int W, int H, int channels, uint8_t value) {
   return Image8{W, H, channels, std::vector<uint8_t>(size_t(W) * size_t(H) * size_t(channels), value)};

@@ -13,10 +13,11 @@
 
 #include "gs/pose/pose.h"
 #include "gs/simd/quat.h"
+#include "gs/constants.h"
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using gs::kPi;
 
 // Portable seeded normals: mt19937_64's raw output is fixed by the standard; the distributions are not.
 struct Rng {

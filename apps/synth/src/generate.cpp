@@ -17,6 +17,7 @@
 #include "hbgs/synth.h"
 #include "procedural.h"
 #include "view_math.h"
+#include "gs/constants.h"
 
 namespace hbgs::synth {
 
@@ -209,7 +210,7 @@ namespace {
 using detail::synth_intrinsics;
 using detail::ViewSetup;
 
-constexpr double kPi = 3.14159265358979323846;
+using gs::kPi;
 constexpr const double (&kTarget)[3] = detail::kSceneTarget;
 
 std::vector<ViewSetup> make_views(const SynthOptions& opt) {

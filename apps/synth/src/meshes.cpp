@@ -4,11 +4,12 @@
 
 #include <cmath>
 #include <utility>
+#include "gs/constants.h"
 
 namespace hbgs::synth::detail {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using gs::kPi;
 
 uint32_t add_vertex(Mesh* m, double px, double py, double pz, double nx, double ny, double nz) {
   uint32_t id = uint32_t(m->num_vertices());

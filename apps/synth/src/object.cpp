@@ -19,6 +19,7 @@
 #include "gs/platform/thread_pool.h"
 #include "hbgs/synth.h"
 #include "procedural.h"
+#include "gs/constants.h"
 
 namespace hbgs::synth {
 
@@ -29,7 +30,7 @@ double detail::object_camera_distance(const gs::PinholeIntrinsics& K) {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using gs::kPi;
 // Every llffhold-th view (by name) is a test view, as gs::io::DatasetOptions::llffhold splits the
 // COLMAP model; the transforms files repeat that split.
 constexpr int kTestEvery = 8;

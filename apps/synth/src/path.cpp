@@ -25,6 +25,7 @@
 #include "gs/pose/pose.h"
 #include "hbgs/synth.h"
 #include "procedural.h"
+#include "gs/constants.h"
 
 namespace hbgs::synth {
 namespace {
@@ -33,7 +34,7 @@ namespace fs = std::filesystem;
 using detail::kSceneTarget;
 using detail::synth_intrinsics;
 
-constexpr double kPi = 3.14159265358979323846;
+using gs::kPi;
 constexpr double kDeg = kPi / 180.0;
 
 // The hand-held path's schedule, seconds (see PathOptions in hbgs/synth.h).

@@ -14,13 +14,14 @@
 #include "meshes.h"
 #include "procedural.h"
 #include "view_math.h"
+#include "gs/constants.h"
 
 namespace hbgs::synth {
 namespace {
 
 using detail::Mesh;
 
-constexpr double kPi = 3.14159265358979323846;
+using gs::kPi;
 
 enum class Pattern { kGround, kStripes, kChecker, kBands, kDots, kNoise };
 

@@ -22,4 +22,13 @@ inline double median(std::vector<double> values) {
   return values.size() % 2 ? values[m] : 0.5 * (values[m - 1] + values[m]);
 }
 
+// The upper median (the larger middle value for an even count), found in place with nth_element:
+// reorders `values`. 0 for no values.
+inline double upper_median_in_place(std::vector<double>& values) {
+  if (values.empty()) return 0.0;
+  const size_t mid = values.size() / 2;
+  std::nth_element(values.begin(), values.begin() + long(mid), values.end());
+  return values[mid];
+}
+
 }  // namespace gs
