@@ -9,10 +9,10 @@
 #      track_video (the scene's images as frames), train_with_progress;
 #   3. examples/render_to_png built with plain `pkg-config --cflags --libs hbgs` and run;
 #   4. cmake --install of the aarch64 build, examples/ cross-built against it and render_to_png run
-#      under qemu-aarch64 on the same scene and model (armhf likewise under qemu-arm when built), and
-#      the installed hbgs-device tracks the scene's images in fixed point under qemu: its poses must
-#      be those of the native hbgs-device within 0.001 degrees and 1e-5 of the scene radius (the
-#      same frames lost);
+#      under qemu-aarch64 on the same scene and model (armhf likewise under qemu-arm when built), the
+#      installed hbgs-device trains 20 iterations on the scene with budget options, and it tracks
+#      the scene's images in fixed point under qemu: its poses must be those of the native
+#      hbgs-device within 0.001 degrees and 1e-5 of the scene radius (the same frames lost);
 #   5. cpack -G DEB in each build folder: hbgs_<version>_{amd64,arm64,armhf}.deb, copied to
 #      build/packages/; the arm64 package unpacked (dpkg-deb -x) and its hbgs render run under
 #      qemu-aarch64; the amd64 package unpacked and examples/ built against it and run.
@@ -153,6 +153,12 @@ cross_examples() {  # cross_examples BUILD_DIR TRIPLE QEMU
   "$qemu" -L "/usr/$triple" "$work/ex-$triple/render_to_png" "$scene" "$run/model.hbgs" "$work/$triple-model.png" 1
   "$qemu" -L "/usr/$triple" "$work/ex-$triple/render_to_png" "$scene" "$work/points.ply" "$work/$triple-ply.png" 2
   need_file "$work/$triple-model.png" "$work/$triple-ply.png"
+  # Training on the board, with the budget options (their ranges once refused every value on 32-bit
+  # ARM, where size_t(1) << 32 is undefined).
+  step "$triple: hbgs-device train (20 iterations, --max-anchors, --max-gaussians) under $qemu"
+  "$qemu" -L "/usr/$triple" "$prefix/bin/hbgs-device" train "$scene" --out "$work/train-$triple" --iterations 20 \
+    --max-anchors 2000 --max-gaussians 20000 --eval-every 0 --checkpoint-every 0 --save-at "" --threads 2 --quiet
+  need_file "$work/train-$triple/model.hbgs"
   step "$triple: hbgs-device track (fixed point) under $qemu gives the native poses"
   "$qemu" -L "/usr/$triple" "$prefix/bin/hbgs-device" track "$run/model.hbgs" "$scene/images" --out "$work/track-$triple" \
     --threads 2 --quiet >/dev/null

@@ -5,7 +5,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -21,6 +23,12 @@ namespace hbgs::cli {
 namespace {
 
 constexpr int kMaxIterations = 100000000;
+// The largest budgets the options take: 2^32 anchors and 2^34 Gaussians per view, or size_t's
+// largest where that is smaller (32-bit ARM: size_t(1) << 32 is undefined there and gave a range
+// "1 to 0" that refused every value).
+constexpr size_t size_limit(int log2) {
+  return size_t(std::min<uint64_t>(uint64_t(1) << log2, std::numeric_limits<size_t>::max()));
+}
 
 struct TrainCli {
   gs::jobs::TrainRunOptions options;
@@ -180,10 +188,10 @@ Command add_train_command(CLI::App& parent) {
                   "random (a colour per iteration, evaluated on black) or r,g,b in [0, 1]")
       ->capture_default_str()
       ->check(background_validator());
-  sub->add_option("--max-anchors", o->max_anchors, "Hard budget on anchors")->capture_default_str()->check(CLI::Range(size_t(1), size_t(1) << 32));
+  sub->add_option("--max-anchors", o->max_anchors, "Hard budget on anchors")->capture_default_str()->check(CLI::Range(size_t(1), size_limit(32)));
   sub->add_option("--max-gaussians", o->max_gaussians, "Hard budget on neural Gaussians per view")
       ->capture_default_str()
-      ->check(CLI::Range(size_t(1), size_t(1) << 34));
+      ->check(CLI::Range(size_t(1), size_limit(34)));
   sub->add_option("--gaussians-per-pixel", o->gaussians_per_pixel,
                   "Growth budget: neural Gaussians per training view at most this many per pixel (0: none)")
       ->capture_default_str()

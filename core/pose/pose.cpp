@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Camera-pose utilities: se(3) twists, checked pose input, seeded pose noise, Sim(3)-aligned
 // pose errors. See gs/pose/pose.h for the conventions; all arithmetic is in double.
+#include "gs/constants.h"
 #include "gs/pose/pose.h"
 #include "gs/random.h"
 #include "gs/simd/quat.h"
@@ -13,7 +14,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include "gs/constants.h"
 
 namespace gs::pose {
 namespace {

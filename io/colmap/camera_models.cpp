@@ -4,8 +4,8 @@
 // SIMPLE_RADIAL_FISHEYE, FOV), written from COLMAP's documented model definitions (gs/io/colmap.h).
 #include <cmath>
 
-#include "gs/io/colmap.h"
 #include "gs/constants.h"
+#include "gs/io/colmap.h"
 
 namespace gs::io {
 namespace {

@@ -17,12 +17,12 @@
 #include "../colmap/colmap_internal.h"
 #include "../io_util.h"
 #include "gs/bilinear.h"
+#include "gs/constants.h"
 #include "gs/io/transforms.h"
 #include "gs/platform/file.h"
 #include "gs/platform/path.h"
 #include "gs/pose/pose.h"
 #include "gs/scene_frame.h"
-#include "gs/constants.h"
 
 namespace gs::io {
 namespace {

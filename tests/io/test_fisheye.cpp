@@ -7,9 +7,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "gs/constants.h"
 #include "gs/io/colmap.h"
 #include "io_test_util.h"
-#include "gs/constants.h"
 
 namespace gs::io {
 namespace {

@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
+#include "gs/constants.h"
 #include "gs/pose/pose.h"
 #include "gs/simd/quat.h"
-#include "gs/constants.h"
 
 namespace {
 

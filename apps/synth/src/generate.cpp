@@ -11,13 +11,13 @@
 #include <vector>
 
 #include "dataset_parts.h"
+#include "gs/constants.h"
 #include "gs/io/colmap.h"
 #include "gs/io/image.h"
 #include "gs/platform/thread_pool.h"
 #include "hbgs/synth.h"
 #include "procedural.h"
 #include "view_math.h"
-#include "gs/constants.h"
 
 namespace hbgs::synth {
 

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <utility>
+
 #include "gs/constants.h"
 
 namespace hbgs::synth::detail {

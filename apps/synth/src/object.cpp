@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "dataset_parts.h"
+#include "gs/constants.h"
 #include "gs/io/colmap.h"
 #include "gs/io/image.h"
 #include "gs/io/transforms.h"
@@ -19,7 +20,6 @@
 #include "gs/platform/thread_pool.h"
 #include "hbgs/synth.h"
 #include "procedural.h"
-#include "gs/constants.h"
 
 namespace hbgs::synth {
 

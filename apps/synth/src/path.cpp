@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "dataset_parts.h"
+#include "gs/constants.h"
 #include "gs/io/colmap.h"
 #include "gs/io/composite.h"
 #include "gs/io/image.h"
@@ -25,7 +26,6 @@
 #include "gs/pose/pose.h"
 #include "hbgs/synth.h"
 #include "procedural.h"
-#include "gs/constants.h"
 
 namespace hbgs::synth {
 namespace {

@@ -9,12 +9,12 @@
 #include <string>
 #include <vector>
 
+#include "gs/constants.h"
 #include "gs/platform/thread_pool.h"
 #include "hbgs/synth.h"
 #include "meshes.h"
 #include "procedural.h"
 #include "view_math.h"
-#include "gs/constants.h"
 
 namespace hbgs::synth {
 namespace {
