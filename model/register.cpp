@@ -14,6 +14,7 @@
 #include "float_backend.h"
 #include "image_descriptor.h"
 #include "register_sharing.h"
+#include "gs/constants.h"
 #include "gs/io/image.h"
 #include "gs/model/step_graph.h"
 #include "gs/optim/adam.h"
@@ -431,7 +432,7 @@ struct Registrar::Impl {
   // RegisterOptions::coarse_candidates); rel ends as the candidate with the lowest final cost.
   void align_from_candidates(const PinholeIntrinsics& in, Pose* rel, int* iterations, double deadline) {
     const int n = std::max(1, std::min(opt.coarse_candidates, 9));
-    const double a = opt.candidate_angle_deg * M_PI / 180.0;
+    const double a = opt.candidate_angle_deg * kPi / 180.0;
     // Candidate order: the start first, then the four pan/tilt neighbours, then the diagonals.
     static const int kOffsets[9][2] = {{0, 0}, {1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
     Pose best = *rel;

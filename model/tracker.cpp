@@ -11,6 +11,7 @@
 #include <limits>
 
 #include "gs/io/image.h"
+#include "gs/constants.h"
 #include "gs/platform/clock.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/pose/pose.h"
@@ -401,7 +402,7 @@ struct Tracker::Impl {
   // side the alignment slides away from it.
   bool stable(const Pose& q, int* iterations) {
     if (opt.basin_check_deg <= 0) return true;
-    const double a = opt.basin_check_deg * M_PI / 180.0;
+    const double a = opt.basin_check_deg * kPi / 180.0;
     static const int kTurns[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
     for (const auto& turn : kTurns) {
       Pose start = q;

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "gs/constants.h"
+
 namespace gs::optim {
 
 double expon_lr(double lr0, double lr1, int steps, int it) {
@@ -21,7 +23,7 @@ double expon_lr_at(double lr0, double lr1, double progress) {
 double warmup(int steps, int it) { return steps > 0 ? std::min(1.0, double(it) / double(steps)) : 1.0; }
 
 double cosine_decay(int steps, int it, double floor) {
-  const double c = 0.5 * (1 + std::cos(M_PI * double(it - 1) / double(steps)));
+  const double c = 0.5 * (1 + std::cos(kPi * double(it - 1) / double(steps)));
   return floor + (1 - floor) * c;
 }
 

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "../io_util.h"
+#include "gs/constants.h"
 #include "gs/io/transforms.h"
 #include "gs/random.h"
 
@@ -229,7 +230,7 @@ bool photo_consistent(const std::vector<const DatasetView*>& views, const std::v
   double to_c[3], nc = 0;
   for (int i = 0; i < 3; ++i) to_c[i] = cams[c].centre[i] - X[i], nc += to_c[i] * to_c[i];
   nc = std::sqrt(nc);
-  const double min_cos = std::cos(kNeighbourDegrees * 3.14159265358979323846 / 180.0);
+  const double min_cos = std::cos(kNeighbourDegrees * kPi / 180.0);
   size_t near_views = 0, agree = 0;
   for (size_t j = 0; j < cams.size(); ++j) {
     if (j == c) continue;

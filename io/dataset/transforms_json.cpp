@@ -9,6 +9,7 @@
 
 #include "../colmap/colmap_internal.h"
 #include "../io_util.h"
+#include "gs/constants.h"
 #include "gs/io/image.h"
 #include "gs/io/transforms.h"
 #include "gs/pose/pose.h"
@@ -56,7 +57,6 @@ Status read_intrinsics(const Json& obj, const std::string& at, TransformsIntrins
     const std::optional<double>& v = in->*k.field;
     if (k.positive && v && !(*v > 0)) return parse_error(at + "'" + k.name + "' must be > 0, got " + std::to_string(*v));
   }
-  const double kPi = 3.14159265358979323846;
   for (const auto& angle : {in->camera_angle_x, in->camera_angle_y})
     if (angle && !(*angle < kPi)) return parse_error(at + "a camera angle must be below pi radians, got " + std::to_string(*angle));
   for (const char* key : {"w", "h"}) {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "gs/constants.h"
 #include "gs/io/composite.h"
 #include "gs/jobs/run_folder.h"
 #include "gs/model/point_alignment.h"
@@ -42,7 +43,7 @@ std::vector<io::DatasetView> TrainSession::Impl::test_views_in_model_frame(nlohm
   double phi[3];
   pose::so3_log(T.R, phi);
   *report = {{"frame", fitted ? "Sim(3) of the training camera centres" : "none (the centres are degenerate)"},
-             {"sim3_rotation_deg", std::sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]) * 180 / M_PI},
+             {"sim3_rotation_deg", std::sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]) * 180 / kPi},
              {"sim3_scale", T.s},
              {"sim3_views", inliers}};
   return out;
