@@ -26,6 +26,7 @@
 #include "gs/simd/kernel_table.h"
 #if defined(GS_BENCH_HAVE_IO)
 #include "gs/io/colmap.h"
+#include "gs/io/ply.h"
 #endif
 
 namespace gs::bench {
@@ -402,7 +403,31 @@ std::vector<float> mean_knn_distance(const std::vector<float>& xyz, int k) {
   return out;
 }
 
-Workload dataset_workload(const std::string& dir, int max_width, int max_views, ColoredGaussians& s) {
+// A trained scene's Gaussians (a 3DGS .ply, for example `hbgs export RUN --out model.ply`) as colour
+// input: opacity = sigmoid(logit), colour = the SH DC term (0.5 + C0 f_dc, clamped to [0, 1]), so
+// the tile kernels see a trained model's splat sizes, opacities and overlap instead of SfM blobs.
+void load_ply_gaussians(const std::string& path, ColoredGaussians& s) {
+  Expected<GaussianCloud> cloud = io::read_splat_ply(path);
+  if (!cloud.ok()) die("read_splat_ply(" + path + "): " + cloud.status().to_string());
+  const GaussianCloud& c = cloud.value();
+  const size_t n = c.size(), k = size_t(sh_coeff_count(c.sh_degree));
+  if (n == 0) die(path + " holds no Gaussians");
+  constexpr float kShC0 = 0.28209479177387814f;
+  s.means = c.means;
+  s.log_scales = c.log_scales;
+  s.quats = c.quats;
+  s.opacities.resize(n);
+  s.colors.resize(3 * n);
+  for (size_t i = 0; i < n; ++i) {
+    s.opacities[i] = 1.0f / (1.0f + std::exp(-c.opacity_logits[i]));
+    for (int ch = 0; ch < 3; ++ch)
+      s.colors[3 * i + ch] = std::clamp(0.5f + kShC0 * c.sh[i * k * 3 + size_t(ch)], 0.0f, 1.0f);
+  }
+  std::printf("Gaussians from %s: %zu (SH degree %d, DC colour used)\n", path.c_str(), n, c.sh_degree);
+}
+
+Workload dataset_workload(const std::string& dir, const std::string& ply, int max_width, int max_views,
+                          ColoredGaussians& s) {
   io::DatasetOptions dopt;
   dopt.max_width = max_width;
   dopt.llffhold = 0;
@@ -410,9 +435,29 @@ Workload dataset_workload(const std::string& dir, int max_width, int max_views, 
   Expected<io::Dataset> ds = io::load_dataset(dir, dopt);
   if (!ds.ok()) die("load_dataset(" + dir + "): " + ds.status().to_string());
   const io::Dataset& d = ds.value();
+  if (d.views.empty()) die("dataset " + dir + " has no views");
+  Workload w;
+  const size_t nv = max_views > 0 ? std::min(d.views.size(), size_t(max_views)) : d.views.size();
+  // Spread the chosen views over the whole capture rather than taking the first few.
+  for (size_t v = 0; v < nv; ++v) {
+    const io::DatasetView& view = d.views[v * d.views.size() / nv];
+    w.cameras.push_back(view.camera);
+    w.max_width = std::max(w.max_width, view.camera.intr.width);
+    w.max_height = std::max(w.max_height, view.camera.intr.height);
+  }
+  std::string name = dir;
+  while (name.size() > 1 && name.back() == '/') name.pop_back();
+  const size_t slash = name.find_last_of('/');
+  w.label = slash == std::string::npos ? name : name.substr(slash + 1);
+  if (!ply.empty()) {
+    load_ply_gaussians(ply, s);
+    w.label += "+ply";
+    w.count = s.opacities.size();
+    w.params = s.params();
+    return w;
+  }
   const size_t n = d.points_xyz.size() / 3;
   if (n == 0) die("dataset " + dir + " has no SfM points");
-  if (d.views.empty()) die("dataset " + dir + " has no views");
   const double t_load = double(platform::now_ns() - t0) * 1e-9;
   const uint64_t t1 = platform::now_ns();
   const std::vector<float> dist = mean_knn_distance(d.points_xyz, 3);
@@ -435,21 +480,8 @@ Workload dataset_workload(const std::string& dir, int max_width, int max_views, 
     }
     s.quats[4 * i] = 1.0f;
   }
-  Workload w;
-  std::string name = dir;
-  while (name.size() > 1 && name.back() == '/') name.pop_back();
-  const size_t slash = name.find_last_of('/');
-  w.label = slash == std::string::npos ? name : name.substr(slash + 1);
   w.count = n;
   w.params = s.params();
-  const size_t nv = max_views > 0 ? std::min(d.views.size(), size_t(max_views)) : d.views.size();
-  // Spread the chosen views over the whole capture rather than taking the first few.
-  for (size_t v = 0; v < nv; ++v) {
-    const io::DatasetView& view = d.views[v * d.views.size() / nv];
-    w.cameras.push_back(view.camera);
-    w.max_width = std::max(w.max_width, view.camera.intr.width);
-    w.max_height = std::max(w.max_height, view.camera.intr.height);
-  }
   return w;
 }
 #endif
@@ -457,7 +489,7 @@ Workload dataset_workload(const std::string& dir, int max_width, int max_views, 
 int run(int argc, char** argv) {
   CLI::App app{"bench_render: gs::Renderer forward and forward+backward timings"};
   std::string sizes_s = "320x240,980x545", counts_s = "10k,100k,1M", isa_s, threads_s = "1,2", json_path,
-              compare_path, dataset_dir;
+              compare_path, dataset_dir, ply_path;
   int reps = 5, max_width = 0, max_views = 8;
   double max_seconds = 1.0;
   uint64_t seed = 1;
@@ -476,10 +508,13 @@ int run(int argc, char** argv) {
   app.add_option("--json", json_path, "write the results as JSON to this file");
   app.add_option("--compare", compare_path, "print before/after ratios against an earlier --json file");
   app.add_option("--dataset", dataset_dir, "render the views of a COLMAP dataset instead of synthetic scenes");
+  app.add_option("--ply", ply_path,
+                 "--dataset: render these Gaussians (a 3DGS .ply, e.g. from hbgs export) instead of the SfM points");
   app.add_option("--max-width", max_width, "--dataset: downscale images to at most this width (0: as stored)");
   app.add_option("--max-views", max_views, "--dataset: views per pass, spread over the capture (0: all)")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  if (!ply_path.empty() && dataset_dir.empty()) die("--ply needs --dataset (the views to render it from)");
 
   if (quick) {
     if (app.count("--sizes") == 0) sizes_s = "320x240";
@@ -543,6 +578,8 @@ int run(int argc, char** argv) {
     std::printf("  scene:        seed %llu; Gaussians uniform in the frustum at depth 2..10, projected sigma 0.5-2.5 px,\n"
                 "                random rotations, opacity U(0.1,0.9); camera fx = 0.8 W\n",
                 (unsigned long long)seed);
+  else if (!ply_path.empty())
+    std::printf("  scene:        the Gaussians of %s (colour = SH DC term); times are per view\n", ply_path.c_str());
   else
     std::printf("  scene:        one Gaussian per SfM point: isotropic scale = mean distance to the 3 nearest points,\n"
                 "                identity rotation, opacity 0.8, colour = point RGB; times are per view\n");
@@ -563,11 +600,12 @@ int run(int argc, char** argv) {
   if (!dataset_dir.empty()) {
 #if defined(GS_BENCH_HAVE_IO)
     ColoredGaussians ds;
-    const Workload w = dataset_workload(dataset_dir, max_width, max_views, ds);
+    const Workload w = dataset_workload(dataset_dir, ply_path, max_width, max_views, ds);
     run_workload(w, st, pools, rows, skipped);
 #else
     (void)max_width;
     (void)max_views;
+    (void)ply_path;
     die("--dataset needs gs_io, which this build does not have");
 #endif
   } else {
