@@ -203,7 +203,7 @@ Command add_train_command(CLI::App& parent) {
   sub->add_option("--voxel-size", o->voxel_size, "Anchor voxel size in world units (0: automatic)")
       ->capture_default_str()
       ->check(CLI::Range(0.0f, 1e9f));
-  sub->add_option("--offsets", o->offsets, "Neural Gaussians (offsets) per anchor, k (-1: 10, or 7 with --time-budget)")
+  sub->add_option("--offsets", o->offsets, "Neural Gaussians (offsets) per anchor, k (-1: 7 with --time-budget or under 15000 iterations, else 10)")
       ->capture_default_str()
       ->check(CLI::Range(-1, 64))
       ->check(CLI::Validator(

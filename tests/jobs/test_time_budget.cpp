@@ -215,7 +215,7 @@ TEST_CASE("time budget: the length-derived schedule follows the predicted length
   CHECK(back.update_interval == t4000.update_interval);
 }
 
-TEST_CASE("time budget: a budgeted run trains 7 offsets per anchor unless --offsets says otherwise") {
+TEST_CASE("time budget: a budgeted or short run trains 7 offsets per anchor, a long one 10, unless --offsets says otherwise") {
   gs::jobs::TrainRunOptions a;
   auto k_of = [](const gs::jobs::TrainRunOptions& o) {
     gs::Expected<gs::jobs::ResolvedTraining> r = gs::jobs::resolve_training(o);
@@ -224,9 +224,17 @@ TEST_CASE("time budget: a budgeted run trains 7 offsets per anchor unless --offs
     return r->model.k;
   };
   CHECK(a.offsets == -1);
-  CHECK(k_of(a) == gs::model::ModelConfig{}.k);  // no budget: the paper's k
+  CHECK(a.iterations == 30000);
+  CHECK(k_of(a) == gs::model::ModelConfig{}.k);  // a long run without a budget: the paper's k
   CHECK(k_of(a) == 10);
-  a.time_budget = 60;
+  a.iterations = 15000;
+  CHECK(k_of(a) == 10);
+  a.iterations = 14999;  // shorter runs fit their growth window into their length, and train 7
+  CHECK(k_of(a) == 7);
+  a.iterations = 3000;
+  CHECK(k_of(a) == 7);
+  a.iterations = 30000;
+  a.time_budget = 60;  // a budget caps the iterations at 30,000 but is a short run all the same
   CHECK(k_of(a) == 7);
   a.offsets = 12;
   CHECK(k_of(a) == 12);
