@@ -27,14 +27,7 @@ mkdir -p "$out"
 have_compact=0
 if "$hbgs" compact --help >/dev/null 2>&1; then have_compact=1; fi
 
-dataset_of() {
-  case "$1" in
-    synth)
-      if [[ ! -d "$out/synth_scene" ]]; then "$hbgs" synth --out "$out/synth_scene" --quiet >&2; fi
-      echo "$out/synth_scene" ;;
-    *) echo "../shared/data/$1" ;;
-  esac
-}
+source scripts/scene-dataset.sh
 
 # One CSV row from an evaluation's results.json (its last method) and a file size.
 row() {  # scene anchors offsets features format bytes results.json train_seconds
@@ -51,7 +44,7 @@ EOF
 csv=$out/sweep.csv
 echo "scene,max_anchors,offsets,feature_dim,format,bytes,anchors,psnr,ssim,lpips,train_seconds" > "$csv.tmp"
 for scene in $scenes; do
-  dataset=$(dataset_of "$scene")
+  dataset=$(scene_dataset "$scene" "$out/synth_scene")
   if [[ ! -d "$dataset" ]]; then
     echo "budget-sweep.sh: skipped $scene: $dataset not found (../shared is absent)" >&2
     continue

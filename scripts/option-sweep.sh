@@ -29,19 +29,12 @@ if [[ -z "${HBGS_BIN:-}" ]]; then
 fi
 mkdir -p "$out"
 
-dataset_of() {
-  case "$1" in
-    synth)
-      if [[ ! -d "$out/synth_scene" ]]; then "$hbgs" synth --out "$out/synth_scene" --quiet >&2; fi
-      echo "$out/synth_scene" ;;
-    *) echo "../shared/data/$1" ;;
-  esac
-}
+source scripts/scene-dataset.sh
 
 csv=$out/sweep.csv
 echo "scene,variant,seed,psnr,ssim,lpips,train_seconds,median_iteration_ms,anchors,gaussians_per_view" > "$csv.tmp"
 for scene in $scenes; do
-  dataset=$(dataset_of "$scene")
+  dataset=$(scene_dataset "$scene" "$out/synth_scene")
   if [[ ! -d "$dataset" ]]; then
     echo "option-sweep.sh: skipped $scene: $dataset not found (../shared is absent)" >&2
     continue
