@@ -21,6 +21,7 @@
 
 #include "bench_common.h"
 #include "bench_harness.h"
+#include "gs/constants.h"
 #include "gs/platform/thread_pool.h"
 #include "gs/render.h"
 #include "gs/simd/kernel_table.h"
@@ -412,7 +413,7 @@ void load_ply_gaussians(const std::string& path, ColoredGaussians& s) {
   const GaussianCloud& c = cloud.value();
   const size_t n = c.size(), k = size_t(sh_coeff_count(c.sh_degree));
   if (n == 0) die(path + " holds no Gaussians");
-  constexpr float kShC0 = 0.28209479177387814f;
+  constexpr float kShC0 = float(gs::kShC0);
   s.means = c.means;
   s.log_scales = c.log_scales;
   s.quats = c.quats;

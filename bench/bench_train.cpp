@@ -147,6 +147,11 @@ int run(int argc, char** argv) {
   app.add_option("--isa", o.isa, "kernel table (default: the best for this CPU)");
   app.add_option("--image-features", o.image_features, "paper, visible or none")->capture_default_str()->check(CLI::IsMember({"paper", "visible", "none"}));
   app.add_option("--seed", o.seed, "model and view-order seed")->capture_default_str();
+  app.add_option("--offsets", o.offsets,
+                 "neural Gaussians per anchor (-1: the job's choice, 7 below 15000 iterations and 10 from there; "
+                 "10 for comparisons with builds before that)")
+      ->capture_default_str()
+      ->check(CLI::Range(-1, 64));
   app.add_flag("!--no-view-check", o.view_check,
                "train on every view as given (as before issue 26): no view held back by the check against the SfM points; "
                "for speed comparisons with builds that have no such check");
@@ -199,8 +204,8 @@ int run(int argc, char** argv) {
   const double p90 = percentile(ms, 0.9);
   const MachineInfo mi = machine_info();
   const int w = views.front()->camera.intr.width, h = views.front()->camera.intr.height;
-  std::printf("bench_train: %s, %zu training views at %dx%d, image features %s\n", dataset.c_str(), views.size(), w, h,
-              features.c_str());
+  std::printf("bench_train: %s, %zu training views at %dx%d, image features %s, %d offsets per anchor\n",
+              dataset.c_str(), views.size(), w, h, features.c_str(), trainer.model().config.k);
   std::printf("  CPU %s, %s, load %.2f\n", mi.cpu_model.c_str(), format_mhz(mi).c_str(), load_average());
   std::printf("  ISA %s, %d threads, %d warm-up + %d timed iterations\n", kernels->isa, pool.num_threads(), warmup,
               iterations);
@@ -281,6 +286,7 @@ int run(int argc, char** argv) {
                         {"width", w},
                         {"height", h},
                         {"image_features", features},
+                        {"offsets", trainer.model().config.k},
                         {"isa", kernels->isa},
                         {"threads", pool.num_threads()},
                         {"warmup", warmup},

@@ -6,10 +6,10 @@
 #include <cmath>
 #include <unordered_map>
 
+#include "gs/constants.h"
+
 namespace gs {
 namespace {
-
-constexpr float kShC0 = 0.28209479177387814f;  // degree-0 real SH constant
 
 struct Grid {
   float origin[3];
@@ -81,7 +81,7 @@ GaussianCloud gaussians_from_points(const float* xyz, const uint8_t* rgb, size_t
     for (int a = 0; a < 3; ++a) {
       c.means[3 * i + a] = xyz[3 * i + a];
       c.log_scales[3 * i + a] = std::log(std::max(d[i], 1e-7f));
-      c.sh[3 * i + a] = (float(rgb[3 * i + a]) / 255.0f - 0.5f) / kShC0;
+      c.sh[3 * i + a] = (float(rgb[3 * i + a]) / 255.0f - 0.5f) / float(kShC0);
     }
     c.quats[4 * i] = 1.0f;
     c.quats[4 * i + 1] = c.quats[4 * i + 2] = c.quats[4 * i + 3] = 0.0f;

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "../io_util.h"
+#include "gs/constants.h"
 #include "gs/gaussians.h"
 #include "gs/platform/file.h"
 #include "gs/status.h"
@@ -20,8 +21,7 @@ namespace gs::io::detail {
 // .splat and 25 GB as float PLY, beyond any scene hbgs renders on a CPU.
 constexpr uint64_t kMaxSplats = 100'000'000;
 
-// The degree-0 SH basis constant: colour = 0.5 + kShC0 * dc (the 3DGS convention).
-constexpr double kShC0 = 0.28209479177387814;
+using gs::kShC0;  // colour = 0.5 + kShC0 * dc (the 3DGS convention)
 
 // 1/sqrt(2): the bound of a unit quaternion's three smallest components (smallest-three packing in
 // .spz v3 and compressed.ply).
