@@ -6,7 +6,9 @@
 // the anchor decoding. Prints median ms per view,
 // the int/float speed ratio, and the PSNR of each path against the dataset images (8-bit) and of
 // the fixed-point renders against the float ones (gs::metrics::psnr_u8, means over the views: one
-// view the two paths render identically makes the agreement "inf").
+// view the two paths render identically makes the agreement "inf"). --profile then times each stage
+// of the float path (gs/stage_times.h) in one more pass over the views per thread count, and prints
+// the stages side by side with each one's speed-up from the first thread count to the last.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -19,7 +21,9 @@
 #include "gs/jobs/run_folder.h"
 #include "gs/metrics/image_metrics.h"
 #include "gs/model/model_renderer.h"
+#include "gs/platform/clock.h"
 #include "gs/platform/thread_pool.h"
+#include "gs/stage_times.h"
 
 namespace {
 
@@ -41,6 +45,7 @@ int main(int argc, char** argv) {
   CLI::App app{"bench_fixed_point: float vs fixed-point forward on a trained model's test views"};
   std::string model, dataset, isas, threads_list = "1,2", split = "test";
   int reps = 3, max_width = -1;
+  bool profile = false;
   app.add_option("model", model, "Run folder, .hbgs or .hbgc model")->required();
   app.add_option("--dataset", dataset, "COLMAP dataset (default: the run's)");
   app.add_option("--isa", isas, "Kernel tables, comma separated (default: every SIMD table available)");
@@ -48,6 +53,7 @@ int main(int argc, char** argv) {
   app.add_option("--reps", reps, "Timed passes over the views")->capture_default_str();
   app.add_option("--split", split, "Views: test, train or all")->capture_default_str();
   app.add_option("--max-width", max_width, "Downscale views to at most this width (default: as trained)");
+  app.add_flag("--profile", profile, "Also time each stage of the float path per thread count (one more pass over the views)");
   CLI11_PARSE(app, argc, argv);
 
   gs::Expected<gs::jobs::ModelViews> mv = gs::jobs::load_model_views(model, dataset, max_width, split);
@@ -84,6 +90,7 @@ int main(int argc, char** argv) {
   std::printf("  %-7s %3s  %10s %10s %7s  %10s %10s  %9s %9s %11s\n", "isa", "thr", "float fwd", "int fwd", "ratio",
               "dec float", "dec int", "PSNR flt", "PSNR int", "int vs flt");
   for (const gs::simd::KernelTable* kt : tables) {
+    std::vector<std::pair<int, gs::StageTimes>> profiles;  // per thread count, the float path's stages
     for (const std::string& tl : gs::bench::split_list(threads_list)) {
       gs::platform::ThreadPool pool(std::stoi(tl));
       gs::model::ModelRenderer renderer;
@@ -125,7 +132,45 @@ int main(int argc, char** argv) {
       std::printf("  %-7s %3d  %8.2f ms %8.2f ms %6.2fx  %7.2f ms %7.2f ms  %9.3f %9.3f %8.1f dB\n", kt->isa,
                   pool.num_threads(), f, q, q > 0 ? f / q : 0.0, median(dec[0]), median(dec[1]), psnr[0], psnr[1], agree);
       std::fflush(stdout);
+      if (profile) {
+        if (gs::Status st = renderer.set_options(gs::model::ModelRenderOptions{}); !st.ok()) {
+          std::fprintf(stderr, "bench_fixed_point: %s\n", st.to_string().c_str());
+          return 1;
+        }
+        gs::StageTimes times;
+        renderer.set_stage_times(&times);
+        for (const auto* v : views) {
+          const uint64_t t0 = gs::platform::now_ns();
+          if (gs::Status st = renderer.render(mv->model, v->camera, rgb.data()); !st.ok()) {
+            std::fprintf(stderr, "bench_fixed_point: %s: %s\n", v->name.c_str(), st.to_string().c_str());
+            return 1;
+          }
+          times.finish_iteration(gs::platform::now_ns() - t0);
+        }
+        renderer.set_stage_times(nullptr);
+        profiles.emplace_back(pool.num_threads(), times);
+      }
     }
+    if (profiles.empty()) continue;
+    // The float path's stages, ms per view (means over the views), per thread count.
+    std::printf("\n  %s float path by stage, mean ms per view (%zu views)\n  %-16s", kt->isa, views.size(), "stage");
+    for (const auto& p : profiles) std::printf(" %8dT", p.first);
+    if (profiles.size() > 1) std::printf("  speed-up");
+    std::printf("\n");
+    auto row = [&](const char* name, auto ms_of) {
+      std::printf("  %-16s", name);
+      for (const auto& p : profiles) std::printf(" %8.3f ", ms_of(p.second));
+      const double first = ms_of(profiles.front().second), last = ms_of(profiles.back().second);
+      if (profiles.size() > 1 && last > 0) std::printf("  %7.2fx", first / last);
+      std::printf("\n");
+    };
+    for (int s = 0; s < gs::kStageCount; ++s) {
+      bool any = false;
+      for (const auto& p : profiles) any = any || p.second.ns[s] > 0;
+      if (!any) continue;
+      row(gs::stage_name(s), [&](const gs::StageTimes& t) { return 1e-6 * double(t.ns[s]) / double(std::max<uint64_t>(t.iterations, 1)); });
+    }
+    row("total", [&](const gs::StageTimes& t) { return 1e-6 * double(t.wall_ns) / double(std::max<uint64_t>(t.iterations, 1)); });
   }
   return 0;
 }

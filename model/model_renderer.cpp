@@ -141,4 +141,9 @@ Status ModelRenderer::render(const GaussianCloud& cloud, const Camera& camera, f
 double ModelRenderer::last_decode_ms() const { return impl_->decode_ms; }
 double ModelRenderer::last_forward_ms() const { return impl_->forward_ms; }
 
+void ModelRenderer::set_stage_times(StageTimes* times) {
+  impl_->renderer.set_stage_times(times);
+  impl_->ws.stage_times = times;
+}
+
 }  // namespace gs::model

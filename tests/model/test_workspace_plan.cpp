@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // The decoder workspace planned for the views (visible anchors, kept Gaussians) instead of every
-// row: a view that needs more than the plan grows it and renders exactly as a full plan does.
+// row: a view that needs more than the plan grows it and renders exactly as a full plan does; and
+// stage times lent to the model renderer (bench_fixed_point --profile).
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -9,6 +10,8 @@
 
 #include "gs/model/decode.h"
 #include "gs/model/model_renderer.h"
+#include "gs/platform/thread_pool.h"
+#include "gs/stage_times.h"
 #include "support/model_fixtures.h"
 
 using namespace gs;
@@ -58,4 +61,34 @@ TEST_CASE("workspace plan: a view beyond the planned visible anchors grows the p
   const size_t seen_wide = select_visible_anchors(wide, anchors, static_cast<uint32_t*>(nullptr));
   MESSAGE("visible anchors: close " << seen_close << ", wide " << seen_wide << " of " << m.anchor_count);
   CHECK(seen_close < seen_wide);  // the wide view really overflowed the plan
+}
+
+TEST_CASE("model renderer: stage times lent to it time the decode and renderer stages and change no pixel") {
+  const HybridModel m = scene_model();
+  const Camera cam = camera_at(3.0);
+  platform::ThreadPool pool(2);
+  ModelRenderer plain, profiled;
+  REQUIRE(plain.init(m, 64, 48, &pool).ok());
+  REQUIRE(profiled.init(m, 64, 48, &pool).ok());
+  StageTimes times;
+  profiled.set_stage_times(&times);
+  std::vector<float> a(64 * 48 * 3), b(a.size());
+  for (int rep = 0; rep < 2; ++rep) {
+    REQUIRE(plain.render(m, cam, a.data()).ok());
+    REQUIRE(profiled.render(m, cam, b.data()).ok());
+    CHECK(a == b);  // bit-identical
+  }
+  // Every forward stage of a render ran and was timed; the training-only stages were not.
+  for (int s : {kStageAnchorSelect, kStageImageMlpFwd, kStageDecoderInput, kStageDecoderMlpFwd, kStageDecodeFwd, kStageProject,
+                kStageBin, kStageRasterFwd})
+    CHECK_MESSAGE(times.ns[s] > 0, stage_name(s));
+  for (int s : {kStageLoss, kStageRasterBwd, kStageMlpBwd, kStageAdam}) CHECK_MESSAGE(times.ns[s] == 0, stage_name(s));
+  CHECK(times.projected > 0);
+  CHECK(times.pixels == uint64_t(2 * 64 * 48));
+  // Lent no longer: a later render adds nothing.
+  profiled.set_stage_times(nullptr);
+  const StageTimes before = times;
+  REQUIRE(profiled.render(m, cam, b.data()).ok());
+  CHECK(times.ns[kStageProject] == before.ns[kStageProject]);
+  CHECK(times.pixels == before.pixels);
 }

@@ -11,6 +11,7 @@
 #include "gs/camera.h"
 #include "gs/gaussians.h"
 #include "gs/model/hybrid_model.h"
+#include "gs/stage_times.h"
 #include "gs/status.h"
 
 namespace gs::platform { class ThreadPool; }
@@ -59,6 +60,10 @@ class ModelRenderer {
   // renderer's forward (projection, binning, sorting, blending).
   double last_decode_ms() const;
   double last_forward_ms() const;
+  // Per-stage wall times of the following renders (gs/stage_times.h: anchor selection to decoding,
+  // then the Gaussian renderer's projection, binning, sorting and blending) are added to *times;
+  // null stops it. Not owned; bench_fixed_point --profile.
+  void set_stage_times(StageTimes* times);
 
  private:
   struct Impl;
