@@ -168,9 +168,9 @@ int main(int argc, char** argv) {
       bool any = false;
       for (const auto& p : profiles) any = any || p.second.ns[s] > 0;
       if (!any) continue;
-      row(gs::stage_name(s), [&](const gs::StageTimes& t) { return 1e-6 * double(t.ns[s]) / double(std::max<uint64_t>(t.iterations, 1)); });
+      row(gs::stage_name(s), [&](const gs::StageTimes& t) { return t.ms_per_iteration(s); });
     }
-    row("total", [&](const gs::StageTimes& t) { return 1e-6 * double(t.wall_ns) / double(std::max<uint64_t>(t.iterations, 1)); });
+    row("total", [](const gs::StageTimes& t) { return t.profiled_ms_per_iteration(); });
   }
   return 0;
 }

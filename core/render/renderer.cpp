@@ -700,7 +700,7 @@ Status Renderer::backward(const float* v_rgb, GaussianGrads* grads) {
   };
   auto reduce = [&](size_t rb, size_t re, int) {
     for (size_t r = rb; r < re; ++r) {
-      if (bands == 1) {
+      if (bands == 1) {  // every key is this band's: no picking (one thread, the boards' common case)
         for (size_t k = 0; k < total; ++k) add(uint32_t(m.keys[k]), k);
         continue;
       }
