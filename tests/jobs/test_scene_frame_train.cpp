@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Far and scaled scenes train like the original (gs/scene_frame.h): the built-in scene at a reduced
 // size, moved by 1e5 and 1e7 units and scaled by 1e-3 and 1e3 (written as binary COLMAP, doubles),
-// trains to the original's test PSNR within 0.1 dB (without growth, which is chaotic in a run this
+// trains to the original's test PSNR within 0.25 dB (without growth, which is chaotic in a run this
 // short: train_and_export), and what the run writes for the user is in the user's frame: the
 // exported PLY's Gaussians and the refined poses.
 #include <algorithm>
@@ -68,6 +68,9 @@ struct Outcome {
   gs::io::ColmapModel refined;
 };
 
+// Test PSNR of a moved or scaled scene against its reference run, dB (see train_and_export).
+constexpr double kPsnrTolerance = 0.25;
+
 gs::jobs::TrainRunOptions short_run(const std::string& dataset, const fs::path& out, int iterations) {
   gs::jobs::TrainRunOptions o;
   o.dataset = dataset;
@@ -89,8 +92,11 @@ Outcome train_and_export(const std::string& dataset, const fs::path& out) {
   // No growth: its threshold decisions make a run this short chaotic. The last-bit differences the
   // recentring leaves in the input at 1e5 and 1e7 (a pose's translation is t + R centre in double)
   // moved the test PSNR by up to 1.2 dB with growth on (seeds 3-6, avx2 and sse2), about as much as
-  // the seed does; without it they move it by at most 0.07 dB, so 0.1 dB tells a frame that works
-  // from one that loses precision. The initial anchors still lie on the frame's voxel grid.
+  // the seed does; without it by up to 0.07 dB then, and by 0.105 dB (1e5) and 0.102 dB (1e7) on
+  // avx2 with 7 offsets per anchor (2026-12-07). Hence kPsnrTolerance. Without the frame (every
+  // scene trained where the user put it) 1e7 loses 4.5 dB; at 1e5 the PSNR moves by only 0.03 dB
+  // and the PLY and pose checks below are what fail. The initial anchors still lie on the frame's
+  // voxel grid.
   o.gaussians_per_pixel = 1e-9;
   gs::jobs::TrainRunSummary s;
   const gs::Status st = gs::jobs::train_run(o, nullptr, &s);
@@ -182,7 +188,7 @@ TEST_CASE("scene frame: training the built-in scene moved by 1e5 and 1e7 and sca
     MESSAGE(std::string(m.name) << ": test PSNR " << std::setprecision(6) << moved.psnr << " dB (reference " << c.reference->psnr << "), "
                    << moved.ply.size() << " Gaussians");
     CHECK(std::isfinite(moved.psnr));
-    CHECK(std::abs(moved.psnr - c.reference->psnr) <= 0.1);
+    CHECK(std::abs(moved.psnr - c.reference->psnr) <= kPsnrTolerance);
 
     // The PLY: its Gaussians sit where the original's sit, moved as the scene was, at its scale.
     double mean[3], log_scale = 0;
