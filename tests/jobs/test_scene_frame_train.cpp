@@ -90,7 +90,7 @@ Outcome train_and_export(const std::string& dataset, const fs::path& out) {
   Outcome r;
   gs::jobs::TrainRunOptions o = short_run(dataset, out / "run", 300);
   // No growth: its threshold decisions make a run this short chaotic. The last-bit differences the
-  // recentring leaves in the input at 1e5 and 1e7 (a pose's translation is t + R centre in double)
+  // recentring leaves in the input far out (a pose's translation is t + R centre in double)
   // moved the test PSNR by up to 1.2 dB with growth on (seeds 3-6, avx2 and sse2), about as much as
   // the seed does; without it by up to 0.07 dB then, and by 0.105 dB (1e5) and 0.102 dB (1e7) on
   // avx2 with 7 offsets per anchor (2026-12-07). Hence kPsnrTolerance. Without the frame (every

@@ -12,7 +12,8 @@
 // 0.83x on avx2 without them). For the same reason the chunk's splats are bucketed by the pixel
 // batches (row and column batch) their box covers, not by rows alone: with 8 or 4 lanes a row has
 // 2 or 4 batches, and testing every splat of the row against each batch's columns cost a branch
-// per splat and batch (forward of a trained model's splats 0.97x on avx2, 0.92x on sse2 without).
+// per splat and batch (with the buckets the forward of a trained model's splats takes 0.97x on
+// avx2, 0.92x on sse2).
 // Backward: splat-major (gradients accumulate in registers per splat, one horizontal sum per
 // splat). The colour behind each splat enters only through one per-pixel scalar, the cotangent-
 // weighted light already blended behind it (see bwd), so a step loads and stores little state.
@@ -104,7 +105,7 @@ struct RasterKernels {
   using B = xsimd::batch<float, Arch>;
   using M = xsimd::batch_bool<float, Arch>;
   static constexpr int N = int(B::size);
-  static constexpr int kChunk = 128;  // splats per forward chunk (row buckets index it with uint8_t)
+  static constexpr int kChunk = 128;  // splats per forward chunk (the buckets index it with uint8_t)
   static_assert(kTileSize % N == 0, "tile rows must hold a whole number of batches");
 
   // Lane offsets 0.5, 1.5, ... for pixel centres.
