@@ -17,7 +17,7 @@
 // In both passes the exponent's per-row terms of a splat are computed for all 16 rows a vector at
 // a time before its pixels are visited, and the pixel offset is taken as pixel minus mean (the
 // negated dx, exact), so a blend step does no scalar work and takes the splat's constants as
-// broadcast memory operands: 5-9 % faster tile kernels on avx512 and avx2, bit-identical results.
+// broadcast memory operands: 5-7 % faster tile kernels on avx512 and avx2, bit-identical results.
 // Backward: splat-major (gradients accumulate in registers per splat, one horizontal sum per
 // splat). The colour behind each splat enters only through one per-pixel scalar, the cotangent-
 // weighted light already blended behind it (see bwd), so a step loads and stores little state.
