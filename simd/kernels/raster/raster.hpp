@@ -119,6 +119,24 @@ struct RasterKernels {
     return B::load_aligned(v);
   }
 
+  // Pixel-centre y of each row of the tile that starts at pixel row y0.
+  static void tile_row_centres(int32_t y0, float* out) {
+    for (int ly = 0; ly < kTileSize; ++ly) out[ly] = float(y0 + ly) + 0.5f;
+  }
+
+  // The exponent's per-row terms of splat record s for all 16 tile rows, a vector of rows at a
+  // time (see ChunkRows): b = -(neg_b dy) and c = half_c dy dy with dy = my - row centre, in base 2;
+  // dy itself too when dy_out is not null (the backward's moments need it).
+  static void row_terms(const float* s, const float* row_centres, float* b, float* c, float* dy_out) {
+    const B b_negated(kLog2e * s[kSplatB]), half_c(-0.5f * kLog2e * s[kSplatC]), my(s[kSplatMy]);
+    for (int y = 0; y < kTileSize; y += N) {
+      const B dy = my - B::load_aligned(row_centres + y);
+      if (dy_out) dy.store_aligned(dy_out + y);
+      (b_negated * dy).store_aligned(b + y);
+      (half_c * dy * dy).store_aligned(c + y);
+    }
+  }
+
   // A splat as the forward's inner loop wants it: the exponent's x coefficient pre-scaled (by -1/2
   // and by log2(e), so the exponent is in base 2) and the opacity as its base-2 log added to the
   // exponent. Its per-row terms are in ChunkRows.
@@ -151,8 +169,8 @@ struct RasterKernels {
     // One chunk of splats, packed for the inner loop, and bucketed by the pixel batches (tile row,
     // column batch) their box covers: the inner loop blends every splat of its bucket.
     constexpr int kBatches = kTileSize / N;  // column batches per tile row
-    alignas(64) float row_centres[kTileSize];  // pixel-centre y of each tile row
-    for (int ly = 0; ly < kTileSize; ++ly) row_centres[ly] = float(g.y0 + ly) + 0.5f;
+    alignas(64) float row_centres[kTileSize];
+    tile_row_centres(g.y0, row_centres);
     ChunkSplat chunk[kChunk];
     ChunkRows chunk_rows[kChunk];
     uint8_t buckets[kTileSize][kBatches][kChunk];
@@ -170,12 +188,7 @@ struct RasterKernels {
         c.mx = s[kSplatMx];
         c.half_a = -0.5f * kLog2e * s[kSplatA];
         c.log2_opacity = scalar::log2(s[kSplatOpacity]);
-        const B neg_b_negated(kLog2e * s[kSplatB]), half_c(-0.5f * kLog2e * s[kSplatC]), my(s[kSplatMy]);
-        for (int y = 0; y < kTileSize; y += N) {
-          const B dy = my - B::load_aligned(row_centres + y);
-          (neg_b_negated * dy).store_aligned(chunk_rows[nb].b + y);
-          (half_c * dy * dy).store_aligned(chunk_rows[nb].c + y);
-        }
+        row_terms(s, row_centres, chunk_rows[nb].b, chunk_rows[nb].c, nullptr);
         c.rgbd[0] = s[kSplatR]; c.rgbd[1] = s[kSplatG]; c.rgbd[2] = s[kSplatBlue]; c.rgbd[3] = s[kSplatDepth];
         c.index1 = float(c0 + k + 1);
         for (int32_t y = by0; y <= by1; ++y)
@@ -269,7 +282,7 @@ struct RasterKernels {
     B batch_centres[kBatches];
     for (int b = 0; b < kBatches; ++b) batch_centres[b] = B(float(g.x0 + b * N)) + lane_centres();
     alignas(64) float row_centres[kTileSize];
-    for (int ly = 0; ly < kTileSize; ++ly) row_centres[ly] = float(g.y0 + ly) + 0.5f;
+    tile_row_centres(g.y0, row_centres);
     // Each splat's 9 accumulators are summed across lanes N splats at a time (xsimd::haddp: one
     // transposing reduction instead of 9 horizontal sums per splat).
     alignas(64) float pending[kSums][N * N];
@@ -283,18 +296,9 @@ struct RasterKernels {
       const B idx = B(float(i));
       const B cr(s[kSplatR]), cg(s[kSplatG]), cb(s[kSplatBlue]), op(s[kSplatOpacity]);
       const B half_a2(-0.5f * kLog2e * s[kSplatA]);  // base-2 exponent coefficients
-      // The exponent's per-row terms for all 16 rows, a vector of rows at a time (as in fwd: the
-      // pixel offset is taken as px - mx, the negated dx, and the row's b term negated with it).
+      // The exponent's per-row terms (as in fwd, with the pixel offset taken as pixel minus mean).
       alignas(64) float row_dy[kTileSize], row_b2[kTileSize], row_c2[kTileSize];
-      {
-        const B b2_negated(kLog2e * s[kSplatB]), c2(-0.5f * kLog2e * s[kSplatC]), my(s[kSplatMy]);
-        for (int y = 0; y < kTileSize; y += N) {
-          const B dy = my - B::load_aligned(row_centres + y);
-          dy.store_aligned(row_dy + y);
-          (b2_negated * dy).store_aligned(row_b2 + y);
-          (c2 * dy * dy).store_aligned(row_c2 + y);
-        }
-      }
+      row_terms(s, row_centres, row_b2, row_c2, row_dy);
       B acc_r(0.0f), acc_g(0.0f), acc_b(0.0f), acc_op(0.0f);
       // Moments of v_power over the pixels, in the negated dx: sum -dx, dy, dx^2, -dx dy, dy^2.
       B sum_dx(0.0f), sum_dy(0.0f), sum_dxdx(0.0f), sum_dxdy(0.0f), sum_dydy(0.0f);
@@ -306,8 +310,8 @@ struct RasterKernels {
           const int o = ly * kTileSize + lx;
           const M active = idx < B::load_aligned(last + o);
           if (!xsimd::any(active)) continue;
-          const B dx = batch_centres[lx / N] - mx;  // negated: pixel minus mean
-          const B power = madd(madd(half_a2, dx, row_b), dx, row_c);  // base 2
+          const B dx_negated = batch_centres[lx / N] - mx;  // pixel minus mean
+          const B power = madd(madd(half_a2, dx_negated, row_b), dx_negated, row_c);  // base 2
           if (!xsimd::any(power >= threshold)) continue;
           const B G = exp2_nonpositive(power);
           const B raw = op * G;
@@ -332,10 +336,10 @@ struct RasterKernels {
           // The conic and mean gradients are linear in these moments of v_power over the pixels
           // (the conic is constant per splat), so the step only accumulates the moments.
           const B v_power = op * v_op;
-          const B vp_dx = v_power * dx, vp_dy = v_power * dy;
+          const B vp_dx = v_power * dx_negated, vp_dy = v_power * dy;
           sum_dx += vp_dx;
           sum_dy += vp_dy;
-          sum_dxdx = madd(vp_dx, dx, sum_dxdx);
+          sum_dxdx = madd(vp_dx, dx_negated, sum_dxdx);
           sum_dxdy = madd(vp_dx, dy, sum_dxdy);
           sum_dydy = madd(vp_dy, dy, sum_dydy);
         }
