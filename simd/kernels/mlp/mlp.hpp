@@ -8,14 +8,18 @@
 //   backward  g      = v_y act2'(y)           (elementwise, [R, O] per chunk of R rows)
 //             v_h    = (g W2) masked by hidden > 0       Bm = W2 [O, H]
 //             v_W2  += g^T hidden              A = g^T (strided), Bm = hidden rows
-//             v_W1  += v_h^T x                 A = v_h^T (strided), Bm = x rows
+//             v_W1^T += x^T v_h                A = x^T (strided), Bm = v_h rows
 //             v_x    = v_h W1                  Bm = W1 [H, I]
+// v_W1 is accumulated transposed ([I, Hp] on the stack, from v_W1^T at the call's start, written
+// back at its end), so its products run with lanes along H, a whole number of vectors, instead of
+// along I (hbgs: 52, padded to 64 on 16 lanes: a fifth of the lanes idle); every element still
+// sums the same products in the same order, so the result is the same float.
 // A register tile holds kMR rows x kNV vectors of C; per reduction step it loads kNV vectors of Bm
 // and broadcasts kMR scalars of A, so the accumulators stay in registers for the whole reduction.
 // Operands read as Bm must have a row length that is a multiple of the lane count: the transposed
-// weights are built once per call in a stack buffer, zero-padded to whole vectors; W1, W2, x and
+// weights are built once per call in a stack buffer, zero-padded to whole vectors; W1, W2 and
 // hidden are used in place when their row length already is, and otherwise copied (zero-padded)
-// per call (weights) or per chunk of rows (x, hidden). The weight gradients are reductions over
+// per call (weights) or per chunk of rows (hidden); x is only ever broadcast, so never copied. The weight gradients are reductions over
 // the batch: each chunk of R rows is reduced in registers (K = R) and added to v_W1 / v_W2 once
 // per chunk; v_b1 / v_b2 are summed in a stack buffer and added once per call. C rows whose length
 // is not a multiple of the lanes end with a partial store, so nothing is written past an output
@@ -52,7 +56,8 @@ struct MlpKernels {
   static_assert(N <= 16, "stack lane buffers hold at most 16 floats");
   // Register tile: 12 accumulators + 2 Bm vectors + 1 broadcast fit the 16 vector registers of
   // sse2/avx2/neon. Measured at batch 3300 on the hbgs shapes (avx512 and avx2), 6x2 beat 4x2 by
-  // ~10% in the backward; 8x2 and 4x4 were no better on avx512.
+  // ~10% in the backward; 8x2 and 4x4 were no better on avx512, nor was 6x4 there (one tile for
+  // the 49- or 52-column outputs: forward 0.96-1.08x, backward 0.99-1.02x by shape, bench_mlp).
   static constexpr size_t kMR = 6;          // C rows per register tile
   static constexpr size_t kNV = 2;          // C vectors per register tile
   static constexpr size_t kScratch = 8192;  // stack floats (32 KiB) for padded weights and chunks
@@ -86,9 +91,9 @@ struct MlpKernels {
     if (batch <= 0) return;
     const size_t I = size_t(s->in), H = size_t(s->hidden), O = size_t(s->out);
     const size_t Ip = pad(I), Hp = pad(H), Op = pad(O);
-    const bool copy_x = Ip != I, copy_h = Hp != H;  // rows read as Bm must be whole vectors
-    const size_t fixed = (copy_x ? H * Ip : 0) + (copy_h ? O * Hp : 0) + Hp + Op;
-    const size_t per_row = Op + Hp + (copy_h ? Hp : 0) + (copy_x ? Ip : 0);
+    const bool copy_w1 = Ip != I, copy_h = Hp != H;  // rows read as Bm must be whole vectors
+    const size_t fixed = (copy_w1 ? H * Ip : 0) + (copy_h ? O * Hp : 0) + I * Hp + Hp + Op;
+    const size_t per_row = Op + Hp + (copy_h ? Hp : 0);
     const size_t R = fixed < kScratch ? scalar::min(kMaxChunk, (kScratch - fixed) / per_row) / kMR * kMR : 0;
     if (R < kMinChunk)
       return bwd_rows(s, batch, x, W1, b1, W2, b2, hidden, y, v_y, v_x, v_W1, v_b1, v_W2, v_b2);
@@ -101,7 +106,7 @@ struct MlpKernels {
     };
     const float* W1v = W1;  // [H, Ip]
     const float* W2v = W2;  // [O, Hp]
-    if (copy_x) {
+    if (copy_w1) {
       float* t = take(H * Ip);
       copy_pad(W1, H, I, t, Ip);
       W1v = t;
@@ -111,12 +116,13 @@ struct MlpKernels {
       copy_pad(W2, O, H, t, Hp);
       W2v = t;
     }
+    float* v_W1T = take(I * Hp);  // [I, Hp] v_W1 transposed, accumulated over the chunks
+    transpose_pad(v_W1, H, I, v_W1T, Hp);
     float* sum_b1 = take(Hp);  // v_b1 / v_b2 partial sums of this call
     float* sum_b2 = take(Op);
     float* g = take(R * Op);   // [R, Op] cotangent of the output pre-activation (0 in the padding)
     float* vh = take(R * Hp);  // [R, Hp] cotangent of the hidden pre-activation
     float* hp = copy_h ? take(R * Hp) : nullptr;
-    float* xp = copy_x ? take(R * Ip) : nullptr;
     scalar::fill(sum_b1, sum_b1 + Hp + Op, 0.0f);
     const MlpAct a2 = s->act2;
     for (size_t r0 = 0; r0 < size_t(batch); r0 += R) {
@@ -145,14 +151,11 @@ struct MlpKernels {
           (B::load_aligned(sum_b1 + c) + m).store_aligned(sum_b1 + c);
         }
       gemm(Gemm{O, H, rows, g, 1, Op, hv, Hp, v_W2, H, v_W2, H}, Id{});
-      const float* xv = x + r0 * I;  // [rows, Ip]
-      if (copy_x) {
-        copy_pad(xv, rows, I, xp, Ip);
-        xv = xp;
-      }
-      gemm(Gemm{H, I, rows, vh, 1, Hp, xv, Ip, v_W1, I, v_W1, I}, Id{});
+      gemm(Gemm{I, H, rows, x + r0 * I, 1, I, vh, Hp, v_W1T, Hp, v_W1T, Hp}, Id{});
       if (v_x) gemm(Gemm{rows, I, H, vh, Hp, 1, W1v, Ip, nullptr, 0, v_x + r0 * I, I}, Id{});
     }
+    for (size_t j = 0; j < H; ++j)
+      for (size_t i = 0; i < I; ++i) v_W1[j * I + i] = v_W1T[i * Hp + j];
     for (size_t j = 0; j < H; ++j) v_b1[j] += sum_b1[j];
     for (size_t o = 0; o < O; ++o) v_b2[o] += sum_b2[o];
   }
