@@ -1,9 +1,8 @@
 // SPDX-License-Identifier: MIT
 // xsimd tile rasteriser (forward and backward), templated on the architecture. Lanes run over a
 // pixel batch of two tile rows and N / 2 columns, the rows interleaved lane by lane (batch_index).
-// Each splat is clipped to the box outside
-// which its alpha is provably below 1/255 (splat_support in splat.h, computed once per Gaussian),
-// so small splats touch only a few batches.
+// Each splat is clipped to the box outside which its alpha is provably below 1/255 (splat_support
+// in splat.h, computed once per Gaussian), so small splats touch only a few batches.
 //
 // Forward: batch-major. Splats are taken in chunks of kChunk (boxes precomputed on the stack); for
 // each pixel batch the state (T, colour, depth, last) stays in registers while the chunk's splats
@@ -116,8 +115,8 @@ struct RasterKernels {
   // The pixel batches: N lanes over two tile rows and N / 2 columns, the rows interleaved
   // lane by lane (lane l: row 2 q + (l & 1), column h N / 2 + l / 2), so a splat's two per-row
   // terms enter a step as one 64-bit broadcast. A splat narrower than N / 2 columns then costs one
-  // step per row pair instead of one per row (16 lanes: 12 % fewer steps on a trained
-  // snowmiku_plush model). The per-pixel state is stored batch by batch.
+  // step per row pair instead of one per row (16 lanes: 12 % fewer lane evaluations in a
+  // snowmiku_plush training iteration; docs/MODEL.md). The per-pixel state is stored batch by batch.
   static constexpr int kBatchCols = N / 2;                       // columns per batch
   static constexpr int kColBatches = kTileSize / kBatchCols;     // batches per row pair
   static constexpr int kRowPairs = kTileSize / 2;
