@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
 // xsimd tile rasteriser (forward and backward), templated on the architecture. Lanes run over a
-// pixel batch of two tile rows and N / 2 columns, the rows interleaved lane by lane (batch_index).
-// Each splat is clipped to the box outside which its alpha is provably below 1/255 (splat_support
-// in splat.h, computed once per Gaussian), so small splats touch only a few batches.
+// pixel batch: in the forward two tile rows of N / 2 columns, the rows interleaved lane by lane
+// (batch_index), in the backward N columns of one row. Each splat is clipped to the box outside
+// which its alpha is provably below 1/255 (splat_support in splat.h, computed once per Gaussian),
+// so small splats touch only a few batches.
 //
 // Forward: batch-major. Splats are taken in chunks of kChunk (boxes precomputed on the stack); for
 // each pixel batch the state (T, colour, depth, last) stays in registers while the chunk's splats
@@ -111,12 +112,22 @@ struct RasterKernels {
   using M = xsimd::batch_bool<float, Arch>;
   static constexpr int N = int(B::size);
   static constexpr int kChunk = 128;  // splats per forward chunk (the buckets index it with uint8_t)
+  static_assert(kTileSize % N == 0, "tile rows must hold a whole number of batches");
 
-  // The pixel batches: N lanes over two tile rows and N / 2 columns, the rows interleaved
+  // Lane offsets 0.5, 1.5, ... for pixel centres.
+  static B lane_centres() {
+    alignas(64) float v[N];
+    for (int i = 0; i < N; ++i) v[i] = float(i) + 0.5f;
+    return B::load_aligned(v);
+  }
+
+  // The forward's pixel batches: N lanes over two tile rows and N / 2 columns, the rows interleaved
   // lane by lane (lane l: row 2 q + (l & 1), column h N / 2 + l / 2), so a splat's two per-row
   // terms enter a step as one 64-bit broadcast. A splat narrower than N / 2 columns then costs one
   // step per row pair instead of one per row (16 lanes: 12 % fewer lane evaluations in a
   // snowmiku_plush training iteration; docs/MODEL.md). The per-pixel state is stored batch by batch.
+  // The backward keeps batches of one row (two-row batches there change its lane sums' order: see
+  // docs/MODEL.md).
   static constexpr int kBatchCols = N / 2;                       // columns per batch
   static constexpr int kColBatches = kTileSize / kBatchCols;     // batches per row pair
   static constexpr int kRowPairs = kTileSize / 2;
@@ -293,12 +304,11 @@ struct RasterKernels {
     // and d(pixel . v) / d alpha_j = (c_j . v) T_j - behind_j / (1 - alpha_j) (the reference's
     // colour-behind form, raster_ref.cpp, multiplied out). behind starts at the background term
     // and each splat adds its own term once its gradient is taken: one scalar of state per pixel.
-    // Stored in batch order (batch_index), as in the forward.
     alignas(64) float T[kTilePixels], last[kTilePixels], behind_v[kTilePixels];
     alignas(64) float vr[kTilePixels], vg[kTilePixels], vb[kTilePixels];
     int32_t max_last = 0;
-    for (int k = 0; k < kTilePixels; ++k) {
-      const int lx = k % kTileSize, ly = k / kTileSize, i = batch_index(lx, ly);
+    for (int i = 0; i < kTilePixels; ++i) {
+      const int lx = i % kTileSize, ly = i / kTileSize;
       const bool inside = lx < g.w && ly < g.h;
       const size_t pix = inside ? size_t(g.y0 + ly) * p->width + (g.x0 + lx) : 0;
       T[i] = inside ? final_T[pix] : 1.0f;
@@ -309,9 +319,10 @@ struct RasterKernels {
       vb[i] = inside ? v_rgb[3 * pix + 2] : 0.0f;
       behind_v[i] = T[i] * (p->background[0] * vr[i] + p->background[1] * vg[i] + p->background[2] * vb[i]);
     }
-    // Pixel-centre x of each column batch's lanes, y of each tile row.
-    B batch_centres[kColBatches];
-    for (int b = 0; b < kColBatches; ++b) batch_centres[b] = B(float(g.x0 + b * kBatchCols)) + pair_lane_centres();
+    // Pixel-centre x of each column batch, y of each tile row.
+    constexpr int kBatches = kTileSize / N;
+    B batch_centres[kBatches];
+    for (int b = 0; b < kBatches; ++b) batch_centres[b] = B(float(g.x0 + b * N)) + lane_centres();
     alignas(64) float row_centres[kTileSize];
     tile_row_centres(g.y0, row_centres);
     // Each splat's 9 accumulators are summed across lanes N splats at a time (xsimd::haddp: one
@@ -334,14 +345,14 @@ struct RasterKernels {
       // Moments of v_power over the pixels, in the negated dx: sum -dx, dy, dx^2, -dx dy, dy^2.
       B sum_dx(0.0f), sum_dy(0.0f), sum_dxdx(0.0f), sum_dxdy(0.0f), sum_dydy(0.0f);
       const B mx(s[kSplatMx]);
-      for (int32_t q = by0 / 2; q <= by1 / 2; ++q) {
-        const B dy = pair_broadcast(row_dy + 2 * q), row_b = pair_broadcast(row_b2 + 2 * q);
-        const B row_c = pair_broadcast(row_c2 + 2 * q);
-        for (int32_t h = bx0 / kBatchCols; h <= bx1 / kBatchCols; ++h) {
-          const int o = (q * kColBatches + h) * N;
+      const int32_t c0 = bx0 / N * N, c1 = bx1 / N * N;
+      for (int32_t ly = by0; ly <= by1; ++ly) {
+        const B dy(row_dy[ly]), row_b(row_b2[ly]), row_c(row_c2[ly]);
+        for (int32_t lx = c0; lx <= c1; lx += N) {
+          const int o = ly * kTileSize + lx;
           const M active = idx < B::load_aligned(last + o);
           if (!xsimd::any(active)) continue;
-          const B dx_negated = batch_centres[h] - mx;  // pixel minus mean
+          const B dx_negated = batch_centres[lx / N] - mx;  // pixel minus mean
           const B power = madd(madd(half_a2, dx_negated, row_b), dx_negated, row_c);  // base 2
           if (!xsimd::any(power >= threshold)) continue;
           const B G = exp2_nonpositive(power);
