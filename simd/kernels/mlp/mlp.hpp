@@ -19,9 +19,9 @@
 // Operands read as Bm must have a row length that is a multiple of the lane count: the transposed
 // weights are built once per call in a stack buffer, zero-padded to whole vectors; W1, W2 and
 // hidden are used in place when their row length already is, and otherwise copied (zero-padded)
-// per call (weights) or per chunk of rows (hidden); x is only ever broadcast, so never copied. The weight gradients are reductions over
-// the batch: each chunk of R rows is reduced in registers (K = R) and added to v_W1 / v_W2 once
-// per chunk; v_b1 / v_b2 are summed in a stack buffer and added once per call. C rows whose length
+// per call (weights) or per chunk of rows (hidden); x is only ever broadcast, so never copied. The
+// weight gradients are reductions over the batch: each chunk of R rows is reduced in registers
+// (K = R) and added to v_W1^T / v_W2 once per chunk; v_b1 / v_b2 are summed in a stack buffer and added once per call. C rows whose length
 // is not a multiple of the lanes end with a partial store, so nothing is written past an output
 // and, as Bm rows are whole vectors, nothing is read past an input.
 // Shapes too large for the kScratch stack floats fall back to the row-at-a-time kernels (lanes

@@ -131,7 +131,7 @@ struct RasterKernels {
   static constexpr int kBatchCols = N / 2;                       // columns per batch
   static constexpr int kColBatches = kTileSize / kBatchCols;     // batches per row pair
   static constexpr int kRowPairs = kTileSize / 2;
-  static_assert(N >= 2 && kTileSize % kBatchCols == 0, "a batch is two rows of N / 2 columns");
+  static_assert(N % 2 == 0, "a batch is two rows of N / 2 columns");
   // Index of tile-local pixel (lx, ly) in batch-ordered state.
   static int batch_index(int lx, int ly) {
     return ((ly >> 1) * kColBatches + lx / kBatchCols) * N + (lx % kBatchCols) * 2 + (ly & 1);
